@@ -1,0 +1,161 @@
+"""Rollout buffers that keep, per step, the critic's atoms and the risk parameter HuRi derives from them."""
+
+from collections.abc import Generator
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.buffers import DictRolloutBuffer, RolloutBuffer
+from stable_baselines3.common.type_aliases import TensorDict
+
+from sb3_huri.common.sr_lambda import sr_lambda_targets
+
+
+class HuRiRolloutBufferSamples(NamedTuple):
+    """A minibatch: SB3's rollout samples plus the critic's targets and the distortion of each state."""
+
+    observations: th.Tensor | TensorDict
+    actions: th.Tensor
+    old_values: th.Tensor
+    old_log_prob: th.Tensor
+    advantages: th.Tensor
+    returns: th.Tensor
+    target_atoms: th.Tensor
+    distortion_weights: th.Tensor
+
+
+class _RiskAwareRolloutMixin:
+    """What HuRi adds to SB3's rollout buffers.
+
+    Per step it stores the sorted critic atoms (``atoms``), and once the rollout is complete the algorithm
+    sets the distortion weights ``w(beta_s)`` of each state and its diagnostics (``risk``, ``iqr``,
+    ``rnd_error``) with :meth:`set_risk`, and the atoms and distorted value of the final state of each
+    truncated episode with :meth:`set_time_out_bootstrap`. :meth:`compute_returns_and_advantage` then
+    computes GAE on the distorted values ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)`` with SB3's own code,
+    and the SR(lambda) target atoms of the quantile loss.
+    """
+
+    buffer_size: int
+    n_envs: int
+    gamma: float
+    pos: int
+    generator_ready: bool
+
+    def __init__(self, *args: Any, n_quantiles: int = 64, sr_lambda: float = 1.0, **kwargs: Any):
+        self.n_quantiles = n_quantiles
+        self.sr_lambda = sr_lambda
+        super().__init__(*args, **kwargs)
+
+    def reset(self) -> None:
+        shape, atom_shape = (self.buffer_size, self.n_envs), (self.buffer_size, self.n_envs, self.n_quantiles)
+        self.atoms = np.zeros(atom_shape, dtype=np.float32)
+        self.distortion_weights = np.full(atom_shape, 1.0 / self.n_quantiles, dtype=np.float32)
+        self.target_atoms = np.zeros(atom_shape, dtype=np.float32)
+        self.bootstrap_atoms = np.zeros(atom_shape, dtype=np.float32)
+        self.bootstrap_values = np.zeros(shape, dtype=np.float32)
+        self.has_time_outs = False
+        self.risk = np.zeros(shape, dtype=np.float32)
+        self.iqr = np.zeros(shape, dtype=np.float32)
+        self.rnd_error = np.zeros(shape, dtype=np.float32)
+        super().reset()  # type: ignore[misc]
+
+    def add(  # type: ignore[override]
+        self,
+        obs: Any,
+        action: np.ndarray,
+        reward: np.ndarray,
+        episode_start: np.ndarray,
+        atoms: th.Tensor,
+        log_prob: th.Tensor,
+    ) -> None:
+        """Store a step; ``atoms`` are the critic's sorted atoms ``(n_envs, n_quantiles)``.
+
+        The value of the step is set later from the atoms and the state's risk parameter.
+        """
+        self.atoms[self.pos] = atoms.cpu().numpy()
+        super().add(obs, action, reward, episode_start, atoms.mean(dim=-1), log_prob)  # type: ignore[misc]
+
+    def flat_observations(self) -> np.ndarray | dict[str, np.ndarray]:
+        """The stored observations with time and env axes merged (row ``t * n_envs + e``).
+
+        Only available before ``get()``, which reorders the buffer.
+        """
+        assert not self.generator_ready, "observations are only available in time-major order before get()"
+        observations = self.observations  # type: ignore[attr-defined]
+        if isinstance(observations, dict):
+            return {key: obs.reshape(-1, *obs.shape[2:]) for key, obs in observations.items()}
+        return observations.reshape(-1, *observations.shape[2:])
+
+    def set_risk(self, weights: np.ndarray, risk: np.ndarray, iqr: np.ndarray, rnd_error: np.ndarray) -> None:
+        """Set each state's distortion weights ``(T, E, N)`` and its risk parameter, IQR and RND error."""
+        self.distortion_weights[:] = weights
+        self.risk[:], self.iqr[:], self.rnd_error[:] = risk, iqr, rnd_error
+
+    def set_time_out_bootstrap(
+        self, steps: np.ndarray, envs: np.ndarray, atoms: np.ndarray, values: np.ndarray
+    ) -> None:
+        """Record the sorted atoms and distorted value of the last states of episodes cut at ``steps``."""
+        self.bootstrap_atoms[steps, envs] = atoms
+        self.bootstrap_values[steps, envs] = values
+        self.has_time_outs = len(steps) > 0
+
+    def compute_returns_and_advantage(  # type: ignore[override]
+        self, last_values: th.Tensor, dones: np.ndarray, last_atoms: np.ndarray | None = None
+    ) -> None:
+        """GAE on the distorted values and SR(lambda) target atoms.
+
+        :param last_values: distorted value ``V_beta`` of the state after the rollout, per env
+        :param dones: whether each env's last step ended its episode
+        :param last_atoms: sorted atoms of the state after the rollout ``(n_envs, n_quantiles)``;
+            only needed for a distributional critic (``n_quantiles > 1``)
+        """
+        self.values = np.einsum("ten,ten->te", self.distortion_weights, self.atoms).astype(np.float32)
+        # A truncated episode bootstraps from its last state's value, as in SB3's PPO (the step is done).
+        rewards = self.rewards
+        self.rewards = rewards + self.gamma * self.bootstrap_values
+        super().compute_returns_and_advantage(last_values, dones)  # type: ignore[misc]
+        self.rewards = rewards
+        if self.n_quantiles > 1:
+            assert last_atoms is not None, "a quantile critic needs the atoms of the last state"
+            self.target_atoms = sr_lambda_targets(
+                rewards,
+                self.atoms,
+                self.episode_starts,  # type: ignore[attr-defined]
+                last_atoms,
+                dones.astype(np.float32),
+                self.gamma,
+                self.sr_lambda,
+                self.bootstrap_atoms if self.has_time_outs else None,
+                # SB3 seeds numpy's global generator: draw the mixing generator's seed from it.
+                rng=np.random.default_rng(np.random.randint(2**31)),  # noqa: NPY002
+            )
+
+    def get(self, batch_size: int | None = None) -> Generator[HuRiRolloutBufferSamples, None, None]:  # type: ignore[override]
+        if not self.generator_ready:
+            for name in ("target_atoms", "distortion_weights"):
+                self.__dict__[name] = self.swap_and_flatten(self.__dict__[name])  # type: ignore[attr-defined]
+        yield from super().get(batch_size)  # type: ignore[misc]
+
+    def _get_samples(self, batch_inds: np.ndarray, env: Any = None) -> HuRiRolloutBufferSamples:
+        samples = super()._get_samples(batch_inds)  # type: ignore[misc]
+        return HuRiRolloutBufferSamples(
+            *samples,
+            target_atoms=self.to_torch(self.target_atoms[batch_inds]),  # type: ignore[attr-defined]
+            distortion_weights=self.to_torch(self.distortion_weights[batch_inds]),  # type: ignore[attr-defined]
+        )
+
+
+class HuRiRolloutBuffer(_RiskAwareRolloutMixin, RolloutBuffer):
+    """HuRi's rollout buffer for ``Box`` (and other non-``Dict``) observations.
+
+    :param n_quantiles: number of critic atoms (1 for a scalar critic)
+    :param sr_lambda: SR(lambda) mixing parameter of the critic targets
+    """
+
+
+class HuRiDictRolloutBuffer(_RiskAwareRolloutMixin, DictRolloutBuffer):
+    """HuRi's rollout buffer for ``Dict`` observations.
+
+    :param n_quantiles: number of critic atoms (1 for a scalar critic)
+    :param sr_lambda: SR(lambda) mixing parameter of the critic targets
+    """

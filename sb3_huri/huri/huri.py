@@ -1,0 +1,575 @@
+"""HuRiPPO: adaptive risk-aware distributional PPO (HuRi) as a Stable-Baselines3 on-policy algorithm."""
+
+import warnings
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
+from stable_baselines3.common.vec_env import VecEnv
+from torch.nn import functional as F
+
+from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
+from sb3_huri.common.energy import energy_distance
+from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
+from sb3_huri.common.rnd import RNDTrainingCallback
+from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer
+from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
+from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, VARIANTS, RiskPreset
+
+SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
+
+SUPPORTED_ACTION_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
+
+
+class HuRiPPO(OnPolicyAlgorithm):
+    """Adaptive risk-aware distributional PPO (HuRi, "Humanoid Robots Adaptive Risk-Aware Distributional RL").
+
+    The actor is PPO's (clipped surrogate, normalized advantages, entropy bonus). The critic predicts
+    ``n_quantiles`` atoms of the return distribution, trained with the energy distance to SR(lambda) target
+    atoms (eq. 4) plus an expectation loss (eq. 5). Advantages are GAE on the distorted value
+    ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)``, where each state's risk parameter ``beta_s`` is
+    ``beta_IQR`` (from the interquartile range of its atoms, Algorithm 1) plus ``tanh`` of its RND novelty.
+    The paper's methods are presets (``variant``); every knob below overrides its preset.
+    Defaults are the paper's Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
+
+    :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
+        and ``Dict`` observations) or a :class:`HuRiPolicy` subclass
+    :param env: the environment to learn from (if registered in Gymnasium, can be a str)
+    :param learning_rate: learning rate, a float or a schedule of the progress remaining (from 1 to 0)
+    :param n_steps: steps per environment per rollout
+    :param batch_size: minibatch size; ``None`` splits each rollout into ``n_minibatches`` minibatches
+    :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None``
+    :param n_epochs: epochs over each rollout
+    :param gamma: discount factor
+    :param gae_lambda: GAE parameter
+    :param clip_range: PPO clipping parameter, a float or a schedule
+    :param normalize_advantage: normalize advantages per minibatch
+    :param ent_coef: entropy bonus coefficient (``lambda_entropy``)
+    :param vf_coef: coefficient of the critic loss (PPO's MSE, or the distributional critic's loss)
+    :param max_grad_norm: gradient clipping norm
+    :param use_sde: use generalized state-dependent exploration
+    :param sde_sample_freq: resample the gSDE noise matrix every n steps (-1: once per rollout)
+    :param target_kl: stop an update early when the approximate KL divergence exceeds ``1.5 * target_kl``
+    :param variant: preset, one of ``baseline``, ``cvar0.5``, ``huri-no-rnd``, ``huri-no-iqr``, ``huri``,
+        ``huri-cvar`` (see ``sb3_huri.huri.variants``)
+    :param n_quantiles: number of critic atoms ``N`` (ignored by ``baseline``, whose critic is scalar)
+    :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the variant's
+    :param use_iqr: risk parameter from the IQR band; ``None`` takes the variant's
+    :param use_rnd: add ``tanh(RND error)`` to the risk parameter; ``None`` takes the variant's
+    :param wang_beta: Wang risk parameter when ``use_iqr`` is off (0: neutral, > 0: averse, < 0: seeking)
+    :param cvar_alpha: CVaR level in ``(0, 1]`` when ``use_iqr`` is off (1: neutral)
+    :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
+    :param iqr_risk_levels: risk parameter below, within and above the band; ``None`` takes
+        ``(-1, 0, 1)`` for Wang and ``(1, 1, 0.5)`` for CVaR (paper A.8)
+    :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
+    :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
+    :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
+    :param rnd_learning_rate: Adam learning rate of the RND predictor
+    :param rnd_target_net_arch: hidden sizes of the RND target network
+    :param rnd_predictor_net_arch: hidden sizes of the RND predictor network
+    :param rnd_output_dim: size of the RND embedding
+    :param stats_window_size: episodes averaged in the rollout logs
+    :param tensorboard_log: tensorboard log folder (None: no logging)
+    :param policy_kwargs: extra arguments of the policy (e.g. ``net_arch``, ``activation_fn``)
+    :param verbose: 0 silent, 1 info, 2 debug
+    :param seed: random seed
+    :param device: ``"cpu"``, ``"cuda"``, ``"auto"``...
+    :param _init_setup_model: build the networks at construction
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": MlpPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
+    policy: HuRiPolicy
+    rollout_buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer
+
+    def __init__(
+        self,
+        policy: str | type[HuRiPolicy],
+        env: GymEnv | str,
+        learning_rate: float | Schedule = 2e-4,
+        n_steps: int = 60,
+        batch_size: int | None = None,
+        n_minibatches: int = 4,
+        n_epochs: int = 8,
+        gamma: float = 0.99,
+        gae_lambda: float = 0.95,
+        clip_range: float | Schedule = 0.2,
+        normalize_advantage: bool = True,
+        ent_coef: float = 0.01,
+        vf_coef: float = 1.0,
+        max_grad_norm: float = 1.0,
+        use_sde: bool = False,
+        sde_sample_freq: int = -1,
+        target_kl: float | None = None,
+        variant: str = "huri",
+        n_quantiles: int = 64,
+        distortion: str | None = None,
+        use_iqr: bool | None = None,
+        use_rnd: bool | None = None,
+        wang_beta: float = 0.0,
+        cvar_alpha: float = 0.5,
+        iqr_thresholds: tuple[float, float] = (0.3, 0.7),
+        iqr_risk_levels: tuple[float, float, float] | None = None,
+        sr_lambda: float = 1.0,
+        quantile_coef: float = 1.0,
+        expectation_coef: float = 0.05,
+        rnd_learning_rate: float = 1e-3,
+        rnd_target_net_arch: tuple[int, ...] = (32, 32),
+        rnd_predictor_net_arch: tuple[int, ...] = (32,),
+        rnd_output_dim: int = 16,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ):
+        preset = _preset(variant, distortion, use_iqr, use_rnd)
+        self.variant = variant
+        self.distributional = preset.distributional
+        self.distortion = distortion if distortion is not None else preset.distortion
+        self.use_iqr = preset.use_iqr if use_iqr is None else bool(use_iqr)
+        self.use_rnd = preset.use_rnd if use_rnd is None else bool(use_rnd)
+        self.n_quantiles = n_quantiles if self.distributional else 1
+        self.wang_beta = float(wang_beta)
+        self.cvar_alpha = float(cvar_alpha)
+        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
+        default_levels = DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
+        self.iqr_risk_levels = tuple(float(v) for v in (iqr_risk_levels or default_levels))
+        self.sr_lambda = float(sr_lambda)
+        self.quantile_coef = quantile_coef
+        self.expectation_coef = expectation_coef
+        self.n_minibatches = n_minibatches
+        _check_hyperparameters(self, n_steps, n_epochs, gamma, gae_lambda, rnd_learning_rate, rnd_output_dim)
+
+        # The critic's shape and the RND module are policy arguments, so a saved model rebuilds them.
+        policy_kwargs = dict(policy_kwargs or {})
+        for key in ("n_quantiles", "rnd_kwargs"):
+            if key in policy_kwargs:
+                raise ValueError(f"Pass {key} to HuRiPPO (or choose a variant), not in policy_kwargs")
+        policy_kwargs["n_quantiles"] = self.n_quantiles
+        policy_kwargs["rnd_kwargs"] = (
+            dict(
+                target_net_arch=tuple(rnd_target_net_arch),
+                predictor_net_arch=tuple(rnd_predictor_net_arch),
+                output_dim=rnd_output_dim,
+                learning_rate=rnd_learning_rate,
+            )
+            if self.use_rnd
+            else None
+        )
+        if isinstance(policy, str):
+            # Both aliases name the same class: resolving it here lets "MlpPolicy" take Dict observations.
+            policy = self._get_policy_from_name(policy)  # type: ignore[assignment]
+
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            n_steps=n_steps,
+            gamma=gamma,
+            gae_lambda=gae_lambda,
+            ent_coef=ent_coef,
+            vf_coef=vf_coef,
+            max_grad_norm=max_grad_norm,
+            use_sde=use_sde,
+            sde_sample_freq=sde_sample_freq,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            device=device,
+            seed=seed,
+            _init_setup_model=False,
+        )
+        if self.env is not None and not isinstance(self.action_space, SUPPORTED_ACTION_SPACES):
+            raise ValueError(
+                f"HuRiPPO does not support the action space {self.action_space}: "
+                f"expected one of {[space.__name__ for space in SUPPORTED_ACTION_SPACES]}"
+            )
+        self.batch_size = batch_size
+        if self.env is not None:
+            self.batch_size = _resolve_batch_size(batch_size, n_minibatches, n_steps * self.env.num_envs)
+        self.n_epochs = n_epochs
+        self.clip_range = clip_range
+        self.normalize_advantage = normalize_advantage
+        self.target_kl = target_kl
+
+        if _init_setup_model:
+            self._setup_model()
+
+    def _setup_model(self) -> None:
+        self._setup_lr_schedule()
+        self.set_random_seed(self.seed)
+        buffer_class = (
+            HuRiDictRolloutBuffer if isinstance(self.observation_space, spaces.Dict) else HuRiRolloutBuffer
+        )
+        self.rollout_buffer = buffer_class(
+            self.n_steps,
+            self.observation_space,  # type: ignore[arg-type]
+            self.action_space,
+            device=self.device,
+            gamma=self.gamma,
+            gae_lambda=self.gae_lambda,
+            n_envs=self.n_envs,
+            n_quantiles=self.n_quantiles,
+            sr_lambda=self.sr_lambda,
+        )
+        self.policy = self.policy_class(  # type: ignore[assignment]
+            self.observation_space,
+            self.action_space,
+            self.lr_schedule,
+            use_sde=self.use_sde,
+            **self.policy_kwargs,
+        )
+        self.policy = self.policy.to(self.device)
+        self.clip_range = FloatSchedule(self.clip_range)
+
+    def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
+        callback = super()._init_callback(callback, progress_bar)
+        if self.policy.rnd is not None:
+            # The RND predictor trains first at the end of each rollout, before user callbacks run.
+            callback = CallbackList([RNDTrainingCallback(), callback])
+            callback.init_callback(self)
+        return callback
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        state_dicts, variables = super()._get_torch_save_params()
+        if self.policy_kwargs.get("rnd_kwargs") is not None:
+            state_dicts.append("policy.rnd.optimizer")
+        return state_dicts, variables
+
+    def collect_rollouts(
+        self,
+        env: VecEnv,
+        callback: BaseCallback,
+        rollout_buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer,  # type: ignore[override]
+        n_rollout_steps: int,
+    ) -> bool:
+        """Fill the buffer with ``n_rollout_steps`` steps per env, then assess every state's risk.
+
+        Like SB3's loop, except that the critic's atoms are stored sorted, and that time-outs are
+        collected and bootstrapped at the end of the rollout in one batch, because their value depends
+        on the risk parameter of the final state.
+        """
+        assert self._last_obs is not None, "No previous observation was provided"
+        self.policy.set_training_mode(False)
+        n_steps = 0
+        rollout_buffer.reset()
+        if self.use_sde:
+            self.policy.reset_noise(env.num_envs)
+        callback.on_rollout_start()
+        time_outs: list[tuple[int, int, Any]] = []  # (step, env index, final observation)
+
+        while n_steps < n_rollout_steps:
+            if self.use_sde and self.sde_sample_freq > 0 and n_steps % self.sde_sample_freq == 0:
+                self.policy.reset_noise(env.num_envs)
+            with th.no_grad():
+                obs_tensor = obs_as_tensor(self._last_obs, self.device)  # type: ignore[arg-type]
+                actions, atoms, log_probs = self.policy(obs_tensor)
+                atoms = th.sort(atoms, dim=-1).values
+            actions = actions.cpu().numpy()
+            clipped_actions = actions
+            if isinstance(self.action_space, spaces.Box):
+                if self.policy.squash_output:
+                    clipped_actions = self.policy.unscale_action(clipped_actions)
+                else:
+                    clipped_actions = np.clip(actions, self.action_space.low, self.action_space.high)
+
+            new_obs, rewards, dones, infos = env.step(clipped_actions)
+            self.num_timesteps += env.num_envs
+            callback.update_locals(locals())
+            if not callback.on_step():
+                return False
+            self._update_info_buffer(infos, dones)
+            n_steps += 1
+            if isinstance(self.action_space, spaces.Discrete):
+                actions = actions.reshape(-1, 1)
+            for idx in np.flatnonzero(dones):
+                final_obs = infos[idx].get("terminal_observation")
+                if final_obs is not None and infos[idx].get("TimeLimit.truncated", False):
+                    time_outs.append((rollout_buffer.pos, int(idx), final_obs))
+            rollout_buffer.add(self._last_obs, actions, rewards, self._last_episode_starts, atoms, log_probs)  # type: ignore[arg-type]
+            self._last_obs = new_obs  # type: ignore[assignment]
+            self._last_episode_starts = dones
+
+        self._finish_rollout(rollout_buffer, new_obs, dones, time_outs)
+        callback.update_locals(locals())
+        callback.on_rollout_end()
+        return True
+
+    def _finish_rollout(
+        self,
+        buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer,
+        last_obs: Any,
+        dones: np.ndarray,
+        time_outs: list[tuple[int, int, Any]],
+    ) -> None:
+        """Risk parameters, distorted values, advantages and critic targets for the collected rollout.
+
+        All states (the rollout's, the next ones and the final states of truncated episodes) are assessed
+        in one batch: IQR of their sorted atoms, RND novelty of their critic input, and distortion weights.
+        """
+        n_rollout = buffer.buffer_size * buffer.n_envs
+        extra_obs = [last_obs] + [_add_batch_axis(obs) for _, _, obs in time_outs]
+        with th.no_grad():
+            extra = obs_as_tensor(_concatenate_observations(extra_obs), self.device)
+            extra_atoms = th.sort(self.policy.predict_values(extra), dim=-1).values
+            atoms = th.cat(
+                (th.as_tensor(buffer.atoms, device=self.device).reshape(n_rollout, -1), extra_atoms)
+            )
+            if self.policy.rnd is not None:
+                rollout_inputs = self.policy.critic_features(
+                    obs_as_tensor(buffer.flat_observations(), self.device)
+                )
+                self.policy.rnd.update_normalizer(rollout_inputs)
+                inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
+                rnd_error = self.policy.rnd.prediction_error(inputs)
+            else:
+                rnd_error = th.zeros(len(atoms), device=self.device)
+            risk, weights, iqr = self._assess_risk(atoms, rnd_error)
+            values = (weights * atoms).sum(dim=-1)
+
+        to_numpy = lambda tensor: tensor.cpu().numpy()  # noqa: E731
+        shape = (buffer.buffer_size, buffer.n_envs)
+        buffer.set_risk(
+            to_numpy(weights[:n_rollout]).reshape(*shape, -1),
+            to_numpy(risk[:n_rollout]).reshape(shape),
+            to_numpy(iqr[:n_rollout]).reshape(shape),
+            to_numpy(rnd_error[:n_rollout]).reshape(shape),
+        )
+        n_last = buffer.n_envs
+        if time_outs:
+            steps, envs = np.array([t[0] for t in time_outs]), np.array([t[1] for t in time_outs])
+            first = n_rollout + n_last
+            buffer.set_time_out_bootstrap(steps, envs, to_numpy(atoms[first:]), to_numpy(values[first:]))
+        buffer.compute_returns_and_advantage(
+            last_values=values[n_rollout : n_rollout + n_last],
+            dones=dones,
+            last_atoms=to_numpy(atoms[n_rollout : n_rollout + n_last]),
+        )
+        if self.distributional:
+            self._record_risk(buffer)
+
+    def _assess_risk(self, atoms: th.Tensor, rnd_error: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        """Per state: risk parameter, distortion weights over its sorted atoms, and IQR.
+
+        ``risk = (beta_IQR if use_iqr else the fixed parameter) + (tanh(RND error) if use_rnd)``
+        (paper eqs. 10-11); the scalar critic of ``baseline`` gets weight 1 on its single atom.
+        """
+        iqr = interquartile_range(atoms)
+        if not self.distributional:
+            return th.zeros_like(iqr), th.ones_like(atoms), iqr
+        if self.use_iqr:
+            risk = iqr_risk_level(iqr, self.iqr_thresholds, self.iqr_risk_levels)  # type: ignore[arg-type]
+        else:
+            risk = th.full_like(iqr, self.wang_beta if self.distortion == "wang" else self.cvar_alpha)
+        if self.use_rnd:
+            risk = risk + th.tanh(rnd_error)
+        if self.distortion == "cvar":
+            risk = th.clamp(risk, max=1.0)
+        return risk, distortion_weights(self.distortion, risk, self.n_quantiles), iqr
+
+    def _record_risk(self, buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer) -> None:
+        t_min, t_max = self.iqr_thresholds
+        self.logger.record("rollout/beta_mean", float(buffer.risk.mean()))
+        self.logger.record("rollout/iqr_mean", float(buffer.iqr.mean()))
+        self.logger.record("rollout/beta_iqr_averse", float((buffer.iqr > t_max).mean()))
+        self.logger.record(
+            "rollout/beta_iqr_neutral", float(((buffer.iqr >= t_min) & (buffer.iqr <= t_max)).mean())
+        )
+        self.logger.record("rollout/beta_iqr_seeking", float((buffer.iqr < t_min).mean()))
+        if self.use_rnd:
+            self.logger.record("rollout/rnd_error", float(buffer.rnd_error.mean()))
+
+    def train(self) -> None:
+        """One PPO update on the collected rollout (paper eq. 12).
+
+        ``loss = surrogate + vf_coef * critic_loss - ent_coef * entropy``, where the critic loss is PPO's MSE
+        for a scalar critic, and ``quantile_coef * energy_distance(atoms, SR(lambda) targets)
+        + expectation_coef * MSE(mean of atoms, distorted mean of atoms)`` for a quantile critic.
+        """
+        self.policy.set_training_mode(True)
+        self._update_learning_rate(self.policy.optimizer)
+        clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
+        logs: dict[str, list[float]] = {
+            key: [] for key in ("entropy", "pg", "value", "quantile", "expectation", "clip")
+        }
+        approx_kl_divs: list[float] = []
+        continue_training = True
+
+        for epoch in range(self.n_epochs):
+            approx_kl_divs = []
+            for data in self.rollout_buffer.get(self.batch_size):
+                actions = data.actions
+                if isinstance(self.action_space, spaces.Discrete):
+                    actions = data.actions.long().flatten()
+                outputs, log_prob, entropy = self.policy.evaluate_actions(data.observations, actions)
+
+                advantages = data.advantages
+                if self.normalize_advantage and len(advantages) > 1:
+                    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+                ratio = th.exp(log_prob - data.old_log_prob)
+                policy_loss = -th.min(
+                    advantages * ratio, advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
+                ).mean()
+
+                if self.distributional:
+                    atoms = th.sort(outputs, dim=-1).values
+                    quantile_loss = energy_distance(atoms, data.target_atoms).mean()
+                    expectation_loss = F.mse_loss(
+                        atoms.mean(dim=-1), (data.distortion_weights * atoms).sum(dim=-1)
+                    )
+                    value_loss = self.quantile_coef * quantile_loss + self.expectation_coef * expectation_loss
+                    logs["quantile"].append(quantile_loss.item())
+                    logs["expectation"].append(expectation_loss.item())
+                else:
+                    value_loss = F.mse_loss(data.returns, outputs.flatten())
+                entropy_loss = -th.mean(-log_prob) if entropy is None else -th.mean(entropy)
+                loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * value_loss
+
+                logs["pg"].append(policy_loss.item())
+                logs["value"].append(value_loss.item())
+                logs["entropy"].append(entropy_loss.item())
+                logs["clip"].append(th.mean((th.abs(ratio - 1) > clip_range).float()).item())
+                with th.no_grad():
+                    log_ratio = log_prob - data.old_log_prob
+                    approx_kl_div = th.mean((th.exp(log_ratio) - 1) - log_ratio).item()
+                    approx_kl_divs.append(approx_kl_div)
+                if self.target_kl is not None and approx_kl_div > 1.5 * self.target_kl:
+                    continue_training = False
+                    if self.verbose >= 1:
+                        print(f"Early stopping at step {epoch} due to reaching max kl: {approx_kl_div:.2f}")
+                    break
+
+                self.policy.optimizer.zero_grad()
+                loss.backward()
+                th.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
+                self.policy.optimizer.step()
+
+            self._n_updates += 1
+            if not continue_training:
+                break
+
+        buffer = self.rollout_buffer
+        self.logger.record("train/entropy_loss", np.mean(logs["entropy"]))
+        self.logger.record("train/policy_gradient_loss", np.mean(logs["pg"]))
+        self.logger.record("train/value_loss", np.mean(logs["value"]))
+        if self.distributional:
+            self.logger.record("train/quantile_loss", np.mean(logs["quantile"]))
+            self.logger.record("train/expectation_loss", np.mean(logs["expectation"]))
+        self.logger.record("train/approx_kl", np.mean(approx_kl_divs))
+        self.logger.record("train/clip_fraction", np.mean(logs["clip"]))
+        self.logger.record("train/loss", loss.item())
+        self.logger.record(
+            "train/explained_variance", explained_variance(buffer.values.flatten(), buffer.returns.flatten())
+        )
+        if hasattr(self.policy, "log_std"):
+            self.logger.record("train/std", th.exp(self.policy.log_std).mean().item())
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/clip_range", clip_range)
+
+    def learn(
+        self: SelfHuRiPPO,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 1,
+        tb_log_name: str = "HuRiPPO",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfHuRiPPO:
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+
+def _add_batch_axis(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray | dict[str, np.ndarray]:
+    if isinstance(obs, dict):
+        return {key: np.asarray(value)[None] for key, value in obs.items()}
+    return np.asarray(obs)[None]
+
+
+def _concatenate_observations(batches: list[Any]) -> np.ndarray | dict[str, np.ndarray]:
+    if isinstance(batches[0], dict):
+        return {key: np.concatenate([batch[key] for batch in batches]) for key in batches[0]}
+    return np.concatenate(batches)
+
+
+def _preset(variant: str, distortion: str | None, use_iqr: bool | None, use_rnd: bool | None) -> RiskPreset:
+    if variant not in VARIANTS:
+        raise ValueError(f"Unknown variant {variant!r}: expected one of {list(VARIANTS)}")
+    preset = VARIANTS[variant]
+    if not preset.distributional and (distortion is not None or use_iqr or use_rnd):
+        raise ValueError(
+            "distortion, use_iqr and use_rnd need a quantile critic: variant='baseline' has a scalar critic "
+            f"(choose one of {[name for name, p in VARIANTS.items() if p.distributional]})"
+        )
+    if distortion is not None and distortion not in DISTORTIONS:
+        raise ValueError(f"Unknown distortion {distortion!r}: expected one of {list(DISTORTIONS)}")
+    return preset
+
+
+def _check_hyperparameters(
+    model: HuRiPPO, n_steps: int, n_epochs: int, gamma: float, gae_lambda: float, rnd_lr: float, rnd_out: int
+) -> None:
+    """Raise a ValueError naming the first invalid hyperparameter and its allowed values."""
+    checks = [
+        ("n_steps", n_steps, n_steps >= 1, "an integer >= 1"),
+        ("n_epochs", n_epochs, n_epochs >= 1, "an integer >= 1"),
+        ("n_minibatches", model.n_minibatches, model.n_minibatches >= 1, "an integer >= 1"),
+        ("gamma", gamma, 0.0 <= gamma <= 1.0, "in [0, 1]"),
+        ("gae_lambda", gae_lambda, 0.0 <= gae_lambda <= 1.0, "in [0, 1]"),
+        ("sr_lambda", model.sr_lambda, 0.0 <= model.sr_lambda <= 1.0, "in [0, 1]"),
+        ("cvar_alpha", model.cvar_alpha, 0.0 < model.cvar_alpha <= 1.0, "in (0, 1]"),
+        ("quantile_coef", model.quantile_coef, model.quantile_coef >= 0.0, ">= 0"),
+        ("expectation_coef", model.expectation_coef, model.expectation_coef >= 0.0, ">= 0"),
+        ("rnd_learning_rate", rnd_lr, rnd_lr > 0.0, "> 0"),
+        ("rnd_output_dim", rnd_out, rnd_out >= 1, "an integer >= 1"),
+        (
+            "iqr_risk_levels",
+            model.iqr_risk_levels,
+            len(model.iqr_risk_levels) == 3,
+            "3 values (below, within, above)",
+        ),
+    ]
+    if model.distributional:
+        checks.append(("n_quantiles", model.n_quantiles, model.n_quantiles >= 2, "an integer >= 2"))
+    thresholds = model.iqr_thresholds
+    valid_thresholds = len(thresholds) == 2 and 0.0 <= thresholds[0] <= thresholds[1]
+    checks.append(("iqr_thresholds", thresholds, valid_thresholds, "(t_min, t_max) with 0 <= t_min <= t_max"))
+    for name, value, valid, allowed in checks:
+        if not valid:
+            raise ValueError(f"{name} must be {allowed}, got {value!r}")
+
+
+def _resolve_batch_size(batch_size: int | None, n_minibatches: int, rollout_size: int) -> int:
+    """The minibatch size: given, or the rollout split into ``n_minibatches``; checked against the rollout."""
+    if batch_size is None:
+        if n_minibatches > rollout_size:
+            raise ValueError(
+                f"n_minibatches must be at most n_steps * n_envs = {rollout_size}, got {n_minibatches}"
+            )
+        return -(-rollout_size // n_minibatches)
+    if not 1 < batch_size <= rollout_size:
+        raise ValueError(f"batch_size must be in [2, n_steps * n_envs = {rollout_size}], got {batch_size}")
+    if rollout_size % batch_size:
+        warnings.warn(
+            f"batch_size={batch_size} does not divide the rollout size n_steps * n_envs = {rollout_size}: "
+            f"each epoch ends with a minibatch of {rollout_size % batch_size} samples",
+            stacklevel=3,
+        )
+    return batch_size
