@@ -1,0 +1,23 @@
+"""zerith_gym: the Zerith1-v0 humanoid locomotion environment (MuJoCo, Gymnasium).
+
+Importing the package registers `Zerith1-v0`:
+
+    import gymnasium as gym
+    import zerith_gym  # noqa: F401
+
+    env = gym.make("Zerith1-v0", scenario="nominal", obs_mode="policy")
+"""
+
+from gymnasium.envs.registration import register
+
+from zerith_gym.envs.zerith1 import Zerith1Env
+from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES
+from zerith_gym.scenarios import SCENARIOS
+
+__all__ = ["DEFAULT_REWARD_WEIGHTS", "REWARD_NAMES", "SCENARIOS", "Zerith1Env"]
+
+register(
+    id="Zerith1-v0",
+    entry_point="zerith_gym.envs.zerith1:Zerith1Env",
+    max_episode_steps=1000,
+)

@@ -1,0 +1,60 @@
+"""Gait clock: swing/stance schedule, Raibert foot placement and swing height targets.
+
+The clock is a phase in [0, 1) that advances by control_dt / GAIT_PERIOD each step. The left foot runs
+at the clock's phase and the right foot half a period later. Each foot is in stance for its phase in
+[0, 0.5) and in swing for [0.5, 1) (a walking gait in which the feet take turns), as in Walk-These-Ways
+(Margolis & Agrawal 2023), which the paper's feet-guidance rewards come from.
+
+All functions take arrays with a leading batch axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GAIT_PERIOD = 0.7
+"""Duration (s) of one full gait cycle (two steps)."""
+SWING_HEIGHT = 0.09
+"""Peak sole clearance (m) commanded mid-swing."""
+CONTACT_SMOOTHING = 0.07
+"""Width (in phase units) of the logistic edges of the smoothed stance indicator C_foot."""
+FOOT_PHASE_OFFSETS = np.array([0.0, 0.5])
+_EDGES = np.array([0.0, 0.5, 1.0, 1.5])
+
+
+def foot_phases(phase: np.ndarray) -> np.ndarray:
+    """Per-foot phase (n, 2) from the clock phase (n,)."""
+    return (phase[:, None] + FOOT_PHASE_OFFSETS) % 1.0
+
+
+def desired_contact(foot_phase: np.ndarray, smoothing: float = CONTACT_SMOOTHING) -> np.ndarray:
+    """Smoothed stance indicator C_foot in [0, 1] (1 = the foot should be on the ground), shape (n, 2).
+
+    C = S(phi) (1 - S(phi - 0.5)) + S(phi - 1) (1 - S(phi - 1.5)) with S a logistic of width `smoothing`;
+    the second product makes the indicator continuous where the phase wraps from 1 to 0.
+    """
+    s = 1.0 / (1.0 + np.exp((_EDGES - foot_phase[..., None]) / smoothing))
+    return s[..., 0] * (1.0 - s[..., 1]) + s[..., 2] * (1.0 - s[..., 3])
+
+
+def swing_height_target(foot_phase: np.ndarray, height: float = SWING_HEIGHT) -> np.ndarray:
+    """Commanded sole clearance (n, 2): a triangle over the swing half, peaking at `height`, zero in stance."""
+    swing_progress = np.clip(2.0 * foot_phase - 1.0, 0.0, 1.0)
+    return height * (1.0 - np.abs(1.0 - 2.0 * swing_progress))
+
+
+def raibert_targets(
+    foot_phase: np.ndarray, command: np.ndarray, stance_width: float, period: float = GAIT_PERIOD
+) -> np.ndarray:
+    """Raibert-heuristic foot positions (n, 2 feet, xy) relative to the base, in the base's yaw frame.
+
+    A foot lands ahead of the hip by half the distance the base travels during a stance (at the
+    commanded velocity) and leaves it as far behind: offset = (|1 - 2 phi| - 0.5) * v_cmd * period / 2.
+    """
+    shift = (np.abs(1.0 - 2.0 * foot_phase) - 0.5) * (0.5 * period)  # (n, 2)
+    targets = np.empty(foot_phase.shape + (2,))
+    targets[..., 0] = shift * command[:, None, 0]
+    targets[..., 1] = shift * command[:, None, 1]
+    targets[:, 0, 1] += 0.5 * stance_width
+    targets[:, 1, 1] -= 0.5 * stance_width
+    return targets

@@ -1,0 +1,127 @@
+"""Domain randomization: ranges (paper Tables 5 and 6), per-episode sampling, and applying to a model.
+
+A sample is a `DomainParams` of arrays with a leading batch axis; each robot draws its own from its own
+random generator, always consuming the same amount of randomness (even for degenerate ranges), so a
+batch of robots reproduces the same robots simulated one by one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from zerith_gym import robot
+
+Range = tuple[float, float]
+NUM_LINKS = 16
+"""Bodies whose mass is scaled: every robot body except the root (which gets `added_mass` instead)."""
+
+
+@dataclass(frozen=True)
+class RandomizationRanges:
+    """Uniform ranges of every randomized quantity. Defaults are the nominal robot (no randomization)."""
+
+    friction: Range = (1.0, 1.0)
+    """Sliding friction of the feet and the ground."""
+    added_mass: Range = (0.0, 0.0)
+    """Mass (kg) added to the root body (pelvis, trunk, head): a load at the centroid."""
+    com_offset: Range = (0.0, 0.0)
+    """Offset (m) of the root body's centre of mass, drawn per axis x, y, z."""
+    link_mass_scale: Range = (1.0, 1.0)
+    """Factor on the mass and inertia of each other body, drawn per body."""
+    motor_strength: Range = (1.0, 1.0)
+    """Factor on each actuator's output (its PD torque and torque limit), drawn per joint."""
+    kp_scale: Range = (1.0, 1.0)
+    kd_scale: Range = (1.0, 1.0)
+    action_delay: Range = (0.0, 0.0)
+    """Delay (s) between the policy's action and the actuators, rounded to physics steps."""
+    init_joint_scale: Range = (1.0, 1.0)
+    """Factor on each default joint position at reset."""
+    init_roll_pitch: float = 0.0
+    """Half width (rad) of the uniform base roll and pitch at reset."""
+    push_velocity: Range = (0.0, 0.0)
+    """Magnitude (m/s) of the horizontal velocity kick given to the base every `push_interval_s`."""
+    push_interval_s: float = 8.0
+    observation_noise: float = 0.0
+    """Factor on the policy observation noise scales (0 = noiseless, 1 = training noise)."""
+
+
+NOMINAL = RandomizationRanges()
+TRAIN = RandomizationRanges(
+    friction=(0.1, 1.5),
+    added_mass=(-2.0, 5.0),
+    com_offset=(-0.07, 0.1),
+    link_mass_scale=(0.8, 1.4),
+    motor_strength=(0.9, 1.1),
+    kp_scale=(0.85, 1.15),
+    kd_scale=(0.85, 1.15),
+    action_delay=(0.0, 0.04),
+    init_joint_scale=(0.5, 1.5),
+    init_roll_pitch=0.1,
+    push_velocity=(0.0, 0.5),
+    observation_noise=1.0,
+)
+"""Training ranges: paper Table 5 (left column) and Table 6."""
+TEST_LOAD: Range = (-3.0, 8.0)
+TEST_FRICTION: Range = (0.1, 2.0)
+TEST_COM: Range = (-0.07, 0.1)
+
+
+@dataclass
+class DomainParams:
+    """Sampled physical parameters of n robots (leading axis n)."""
+
+    friction: np.ndarray  # (n, 1)
+    added_mass: np.ndarray  # (n, 1)
+    com_offset: np.ndarray  # (n, 3)
+    link_mass_scale: np.ndarray  # (n, NUM_LINKS)
+    motor_strength: np.ndarray  # (n, 12)
+    kp_scale: np.ndarray  # (n, 12)
+    kd_scale: np.ndarray  # (n, 12)
+    action_delay: np.ndarray  # (n, 1), seconds
+
+    def as_vector(self) -> np.ndarray:
+        """All parameters side by side, (n, DOMAIN_VECTOR_SIZE), in field order (the critic's layout)."""
+        return np.concatenate([getattr(self, f.name) for f in fields(self)], axis=1)
+
+    def row(self, i: int) -> DomainParams:
+        """The parameters of robot i, as a batch of one."""
+        return DomainParams(**{f.name: getattr(self, f.name)[i : i + 1] for f in fields(self)})
+
+    @staticmethod
+    def stack(rows: list[DomainParams]) -> DomainParams:
+        return DomainParams(
+            **{f.name: np.concatenate([getattr(r, f.name) for r in rows]) for f in fields(DomainParams)}
+        )
+
+
+DOMAIN_SIZES = {
+    "friction": 1,
+    "added_mass": 1,
+    "com_offset": 3,
+    "link_mass_scale": NUM_LINKS,
+    "motor_strength": robot.NUM_JOINTS,
+    "kp_scale": robot.NUM_JOINTS,
+    "kd_scale": robot.NUM_JOINTS,
+    "action_delay": 1,
+}
+DOMAIN_VECTOR_SIZE = sum(DOMAIN_SIZES.values())
+
+
+def sample_domain(rng: np.random.Generator, ranges: RandomizationRanges) -> DomainParams:
+    """One robot's parameters (as a batch of one), drawn uniformly from `ranges`."""
+    return DomainParams(
+        **{name: rng.uniform(*getattr(ranges, name), size=(1, size)) for name, size in DOMAIN_SIZES.items()}
+    )
+
+
+def delay_lags(action_delay: np.ndarray, physics_dt: float, decimation: int) -> np.ndarray:
+    """For each robot and physics sub-step, how many control steps old the applied action is, (n, decimation).
+
+    With a delay of d sub-steps, sub-step j of a control step applies the action of
+    -floor((j - d) / decimation) control steps ago (0 = the current one).
+    """
+    delay_steps = np.rint(action_delay[:, 0] / physics_dt).astype(int)
+    substeps = np.arange(decimation)
+    return -np.floor_divide(substeps[None, :] - delay_steps[:, None], decimation)

@@ -1,0 +1,75 @@
+"""Named scenarios: the training conditions, a nominal one, and the paper's evaluation conditions."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from zerith_gym.commands import CommandRanges
+from zerith_gym.disturbances import NO_FORCE, ForceSchedule
+from zerith_gym.randomization import NOMINAL, TEST_COM, TEST_FRICTION, TEST_LOAD, TRAIN, RandomizationRanges
+from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec
+
+TEST_COMMAND = (1.0, 0.0, 0.0)
+"""The evaluation command: 1 m/s forward (beyond the training range), no turning."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything that differs between the training and evaluation conditions."""
+
+    name: str
+    randomization: RandomizationRanges = NOMINAL
+    force: ForceSchedule = NO_FORCE
+    terrain: TerrainSpec = PLANE
+    command: tuple[float, float, float] | None = None
+    """A fixed command, or None to draw commands from `command_ranges` during the episode."""
+    command_ranges: CommandRanges = CommandRanges()
+
+
+_TEST_RANGES = replace(NOMINAL, added_mass=TEST_LOAD, friction=TEST_FRICTION, com_offset=TEST_COM)
+_CONTINUOUS = {"magnitude": (0.0, 100.0), "period_steps": 5, "duration_steps": 5}
+_SUDDEN = {"magnitude": (150.0, 200.0), "period_steps": 100, "duration_steps": 5, "start_step": 100}
+_EVERY_HALF_SECOND = ForceSchedule("centroid", (0.0, 100.0), period_steps=25, duration_steps=25)
+
+
+def _build() -> dict[str, Scenario]:
+    scenarios = [
+        Scenario("train", TRAIN, ForceSchedule("centroid", (0.0, 10.0), period_steps=5, duration_steps=5)),
+        Scenario("nominal"),
+    ]
+    for target in ("centroid", "hands", "feet"):
+        scenarios.append(
+            Scenario(
+                f"continuous-{target}",
+                _TEST_RANGES,
+                ForceSchedule(target, **_CONTINUOUS),
+                command=TEST_COMMAND,
+            )
+        )
+        scenarios.append(
+            Scenario(f"sudden-{target}", _TEST_RANGES, ForceSchedule(target, **_SUDDEN), command=TEST_COMMAND)
+        )
+    scenarios += [
+        Scenario("load", replace(NOMINAL, added_mass=TEST_LOAD), _EVERY_HALF_SECOND, command=TEST_COMMAND),
+        Scenario(
+            "friction", replace(NOMINAL, friction=TEST_FRICTION), _EVERY_HALF_SECOND, command=TEST_COMMAND
+        ),
+        Scenario(
+            "load-friction",
+            replace(NOMINAL, added_mass=TEST_LOAD, friction=TEST_FRICTION),
+            _EVERY_HALF_SECOND,
+            command=TEST_COMMAND,
+        ),
+        Scenario("uneven", terrain=UNEVEN, command=TEST_COMMAND),
+    ]
+    return {s.name: s for s in scenarios}
+
+
+SCENARIOS: dict[str, Scenario] = _build()
+
+
+def get_scenario(name: str) -> Scenario:
+    """The scenario called `name`; ValueError listing the valid names otherwise."""
+    if name not in SCENARIOS:
+        raise ValueError(f"unknown scenario {name!r}; valid scenarios: {', '.join(SCENARIOS)}")
+    return SCENARIOS[name]
