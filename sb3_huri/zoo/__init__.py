@@ -1,0 +1,110 @@
+"""RL Zoo integration: HuRi's methods as ``rl_zoo3`` algorithms, its Optuna sampler and its presets.
+
+After ``pip install sb3-huri`` a start-up hook (``_sb3_huri_zoo_hook``) calls the ``register_*`` and ``use_*``
+functions below as soon as RL Zoo has imported the module each one needs, so RL Zoo's own commands work::
+
+    rl_zoo3 train --algo huri --env Zerith1-v0 -conf hyperparams/huri.yml
+
+``register()`` does all of it at once, for scripts and for the hook-free wrapper ``python -m sb3_huri.zoo``.
+
+Each method of the paper's comparison is its own RL Zoo algorithm (``METHODS``), so that RL Zoo's log folders
+(``logs/<algo>/<env>_<run>``), ``enjoy --algo`` and ``plots.all_plots -a`` tell the methods apart with no
+extra flag, while all of them read the same presets.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Any
+
+# RL Zoo algorithm name -> HuRiPPO ``variant``.
+METHODS = {
+    "huri": "huri",
+    "huri-no-rnd": "huri-no-rnd",
+    "huri-no-iqr": "huri-no-iqr",
+    "huri-cvar": "huri-cvar",
+    "huri-cvar0.5": "cvar0.5",
+    "huri-baseline": "baseline",
+}
+
+# The presets shipped inside the package (``sb3_huri/zoo/hyperparams`` links to the repository's
+# ``hyperparams`` folder, as ``rl_zoo3/hyperparams`` does in RL Zoo).
+PRESETS_FILE = Path(__file__).parent / "hyperparams" / "huri.yml"
+
+
+def register() -> None:
+    """Register every HuRi method, ``Zerith1-v0``, the sampler and the presets with RL Zoo (idempotent)."""
+    register_algorithms()
+    register_environments()
+    register_samplers()
+    use_packaged_hyperparameters()
+
+
+def register_algorithms() -> None:
+    """Add the methods of ``METHODS`` to ``rl_zoo3.ALGOS``."""
+    from rl_zoo3.utils import ALGOS
+
+    for name, variant in METHODS.items():
+        ALGOS.setdefault(name, method_class(variant))
+
+
+def register_environments() -> None:
+    """Register ``Zerith1-v0`` with Gymnasium, which RL Zoo checks ``--env`` against."""
+    import zerith_gym  # noqa: F401
+
+
+def register_samplers() -> None:
+    """Make ``rl_zoo3 train --algo <method> --optimize`` (and ``--trial-id``) use the HuRi search space."""
+    from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER, HYPERPARAMS_SAMPLER
+
+    from sb3_huri.zoo.sampler import convert_huri_params, sample_huri_params
+
+    for name in METHODS:
+        HYPERPARAMS_SAMPLER.setdefault(name, sample_huri_params)
+        HYPERPARAMS_CONVERTER.setdefault(name, convert_huri_params)
+
+
+def use_packaged_hyperparameters() -> None:
+    """Without ``-conf``, let ``rl_zoo3 train --algo <method>`` read the presets shipped with the package.
+
+    RL Zoo's default is ``hyperparams/<algo>.yml`` inside its own package, which does not exist for HuRi; any
+    ``-conf`` given on the command line is left as it is.
+    """
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    init = ExperimentManager.__init__
+    if getattr(init, "_uses_huri_presets", False):
+        return
+
+    @functools.wraps(init)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        init(self, *args, **kwargs)
+        if kwargs.get("config") is None and self.algo in METHODS and not os.path.isfile(self.config):
+            self.config = str(PRESETS_FILE)
+
+    __init__._uses_huri_presets = True  # type: ignore[attr-defined]
+    ExperimentManager.__init__ = __init__  # type: ignore[method-assign]
+
+
+@functools.cache
+def method_class(variant: str) -> type:
+    """``HuRiPPO`` with its ``variant`` fixed: the class RL Zoo builds for one method of the comparison."""
+    from sb3_huri import HuRiPPO
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        if kwargs.setdefault("variant", variant) != variant:
+            raise ValueError(
+                f"variant={kwargs['variant']!r} conflicts with the algorithm, which is HuRiPPO(variant="
+                f"{variant!r}): drop `variant` from the hyperparameters or use --algo huri"
+            )
+        HuRiPPO.__init__(self, *args, **kwargs)
+
+    if variant == "huri":
+        return HuRiPPO
+    return type(
+        f"HuRiPPO[{variant}]",
+        (HuRiPPO,),
+        {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(variant={variant!r})."},
+    )
