@@ -1,0 +1,86 @@
+"""Wall-time overhead of HuRiPPO over SB3's PPO: same env, networks, rollout and update sizes, side by side.
+
+Both algorithms use the paper's asymmetric [512, 256, 128] networks (PPO through ``HuRiPolicy`` with a
+scalar critic), the same ``n_steps``, ``n_envs``, minibatch size and epochs. Runs alternate between the
+algorithms so that machine load affects both alike; the ratio of median wall times is reported.
+
+    python benchmarks/bench_overhead.py                       # Pendulum-v1, and Zerith1-v0 if installed
+    python benchmarks/bench_overhead.py --envs Pendulum-v1 --timesteps 8192 --repeats 3
+"""
+
+import argparse
+import statistics
+import time
+
+import gymnasium as gym
+import torch as th
+from stable_baselines3 import PPO
+from stable_baselines3.common.env_util import make_vec_env
+
+from sb3_huri import HuRiPolicy, HuRiPPO
+
+
+def _make_env(env_id: str, n_envs: int, seed: int):
+    if env_id.startswith("Zerith"):
+        import zerith_gym  # noqa: F401  (registers Zerith1-v0)
+    return make_vec_env(env_id, n_envs=n_envs, seed=seed)
+
+
+def _time_learn(algo: str, env_id: str, args: argparse.Namespace, seed: int) -> float:
+    env = _make_env(env_id, args.n_envs, seed)
+    common = dict(
+        n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs, seed=seed, device="cpu"
+    )
+    if algo == "ppo":
+        model = PPO(HuRiPolicy, env, policy_kwargs=dict(n_quantiles=1), ent_coef=0.01, vf_coef=1.0, **common)
+    else:
+        model = HuRiPPO("MlpPolicy", env, variant=algo, **common)
+    start = time.perf_counter()
+    model.learn(args.timesteps)
+    elapsed = time.perf_counter() - start
+    env.close()
+    return elapsed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--envs", nargs="+", default=["Pendulum-v1", "Zerith1-v0"])
+    parser.add_argument("--variants", nargs="+", default=["huri", "baseline"])
+    parser.add_argument("--timesteps", type=int, default=16384)
+    parser.add_argument("--n-envs", type=int, default=8)
+    parser.add_argument("--n-steps", type=int, default=256)
+    parser.add_argument("--batch-size", type=int, default=512)
+    parser.add_argument("--n-epochs", type=int, default=8)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
+    args = parser.parse_args()
+    th.set_num_threads(args.threads)
+
+    print(
+        f"torch threads={args.threads} n_envs={args.n_envs} n_steps={args.n_steps} batch={args.batch_size} "
+        f"epochs={args.n_epochs} timesteps={args.timesteps} repeats={args.repeats}"
+    )
+    print("| env | algorithm | median wall time (s) | ratio to PPO |")
+    print("|---|---|---|---|")
+    for env_id in args.envs:
+        try:
+            _make_env(env_id, 1, 0).close()
+        except (gym.error.Error, ImportError) as error:
+            print(f"| {env_id} | skipped: {error} | | |")
+            continue
+        algos = ["ppo", *args.variants]
+        times: dict[str, list[float]] = {algo: [] for algo in algos}
+        for repeat in range(args.repeats):
+            for algo in algos:
+                times[algo].append(_time_learn(algo, env_id, args, seed=repeat))
+        reference = statistics.median(times["ppo"])
+        for algo in algos:
+            median = statistics.median(times[algo])
+            name = "SB3 PPO + HuRiPolicy(n_quantiles=1)" if algo == "ppo" else f"HuRiPPO variant={algo}"
+            print(f"| {env_id} | {name} | {median:.2f} | {median / reference:.2f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
