@@ -58,25 +58,24 @@ def horizontal_vectors(uniforms: np.ndarray, magnitude: tuple[float, float]) -> 
     return np.stack([norm * np.cos(angle), norm * np.sin(angle), np.zeros_like(norm)], axis=1)
 
 
-def update_forces(
-    step: np.ndarray, uniforms: np.ndarray, force: np.ndarray, schedule: ForceSchedule
-) -> np.ndarray:
-    """The force (n, 3) acting during control step `step` (n,), given the previous one; draws at period starts."""
-    if not schedule.active:
-        return force
-    since_start = step - schedule.start_step
+def schedule_table(schedule: ForceSchedule, num_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """For control steps 0..num_steps-1: whether a new force is drawn, and whether a force acts."""
+    since_start = np.arange(num_steps) - schedule.start_step
     in_period = since_start % schedule.period_steps
-    draw = (since_start >= 0) & (in_period == 0)
-    on = (since_start >= 0) & (in_period < schedule.duration_steps)
-    force = np.where(draw[:, None], horizontal_vectors(uniforms, schedule.magnitude), force)
+    started = (since_start >= 0) & schedule.active
+    return started & (in_period == 0), started & (in_period < schedule.duration_steps)
+
+
+def update_forces(
+    draw: np.ndarray, on: np.ndarray, uniforms: np.ndarray, force: np.ndarray, magnitude: tuple[float, float]
+) -> np.ndarray:
+    """The force (n, 3) acting this step: redrawn where `draw` (n,), zero where not `on` (n,)."""
+    if draw.any():
+        force = np.where(draw[:, None], horizontal_vectors(uniforms, magnitude), force)
     return force * on[:, None]
 
 
-def push_kicks(
-    step: np.ndarray, uniforms: np.ndarray, magnitude: tuple[float, float], interval_steps: int
-) -> np.ndarray | None:
-    """Horizontal base velocity kicks (n, 2) due at control step `step`, or None when none is due."""
-    due = (step > 0) & (step % interval_steps == 0)
-    if magnitude[1] <= 0.0 or not due.any():
-        return None
-    return horizontal_vectors(uniforms, magnitude)[:, :2] * due[:, None]
+def push_due(num_steps: int, interval_steps: int, magnitude: tuple[float, float]) -> np.ndarray:
+    """For control steps 0..num_steps-1: whether a velocity push is given."""
+    steps = np.arange(num_steps)
+    return (steps > 0) & (steps % interval_steps == 0) & (magnitude[1] > 0.0)

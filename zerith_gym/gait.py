@@ -38,7 +38,7 @@ def desired_contact(foot_phase: np.ndarray, smoothing: float = CONTACT_SMOOTHING
 
 
 def swing_height_target(foot_phase: np.ndarray, height: float = SWING_HEIGHT) -> np.ndarray:
-    """Commanded sole clearance (n, 2): a triangle over the swing half, peaking at `height`, zero in stance."""
+    """Commanded sole clearance (n, 2): a triangle over the swing half peaking at `height`, 0 in stance."""
     swing_progress = np.clip(2.0 * foot_phase - 1.0, 0.0, 1.0)
     return height * (1.0 - np.abs(1.0 - 2.0 * swing_progress))
 
@@ -52,9 +52,34 @@ def raibert_targets(
     commanded velocity) and leaves it as far behind: offset = (|1 - 2 phi| - 0.5) * v_cmd * period / 2.
     """
     shift = (np.abs(1.0 - 2.0 * foot_phase) - 0.5) * (0.5 * period)  # (n, 2)
-    targets = np.empty(foot_phase.shape + (2,))
+    targets = np.empty((*foot_phase.shape, 2))
     targets[..., 0] = shift * command[:, None, 0]
     targets[..., 1] = shift * command[:, None, 1]
     targets[:, 0, 1] += 0.5 * stance_width
     targets[:, 1, 1] -= 0.5 * stance_width
     return targets
+
+
+def cycle_table(control_dt: float, period: float = GAIT_PERIOD) -> np.ndarray:
+    """Every clock-driven signal at each control step of one gait cycle, (steps_per_cycle, 8).
+
+    The clock advances by a whole number of control steps per cycle, so the signals repeat exactly and
+    a per-step look-up replaces their computation. Columns: clock sin, cos; C_foot left, right; swing
+    height target left, right; Raibert shift (seconds of commanded travel) left, right.
+    """
+    steps = round(period / control_dt)
+    if abs(steps * control_dt - period) > 1e-9:
+        raise ValueError(
+            f"the gait period ({period} s) must be a whole number of control steps ({control_dt} s)"
+        )
+    phase = np.arange(steps) / steps
+    feet = foot_phases(phase)
+    return np.column_stack(
+        [
+            np.sin(2.0 * np.pi * phase),
+            np.cos(2.0 * np.pi * phase),
+            desired_contact(feet),
+            swing_height_target(feet),
+            (np.abs(1.0 - 2.0 * feet) - 0.5) * (0.5 * period),
+        ]
+    )

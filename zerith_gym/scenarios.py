@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 from zerith_gym.commands import CommandRanges
 from zerith_gym.disturbances import NO_FORCE, ForceSchedule
@@ -23,7 +23,7 @@ class Scenario:
     terrain: TerrainSpec = PLANE
     command: tuple[float, float, float] | None = None
     """A fixed command, or None to draw commands from `command_ranges` during the episode."""
-    command_ranges: CommandRanges = CommandRanges()
+    command_ranges: CommandRanges = field(default_factory=CommandRanges)
 
 
 _TEST_RANGES = replace(NOMINAL, added_mass=TEST_LOAD, friction=TEST_FRICTION, com_offset=TEST_COM)

@@ -14,13 +14,21 @@ robots stepped together follow exactly the trajectories of n single environments
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
 from zerith_gym import gait, robot
 from zerith_gym.commands import COMMAND_DRAWS, sample_commands
-from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, push_kicks, update_forces
+from zerith_gym.disturbances import (
+    FORCE_DRAWS,
+    PUSH_DRAWS,
+    horizontal_vectors,
+    push_due,
+    schedule_table,
+    update_forces,
+)
 from zerith_gym.observations import (
     CRITIC_LAYOUT,
     CRITIC_SIZE,
@@ -109,14 +117,26 @@ class ZerithTask:
         self.soft_low = centre - JOINT_SOFT_LIMIT * half
         self.soft_high = centre + JOINT_SOFT_LIMIT * half
         self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
-        self.command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
-        self.push_interval = round(self.ranges.push_interval_s / robot.CONTROL_DT)
-        self._phase_step = robot.CONTROL_DT / gait.GAIT_PERIOD
+        # What is due at each control step of an episode: force draw, force on, command draw, push.
+        command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
+        steps = np.arange(EPISODE_STEPS)
+        self._due = np.column_stack(
+            [
+                *schedule_table(scenario.force, EPISODE_STEPS),
+                (steps > 0) & (steps % command_interval == 0) & (self.fixed_command is None),
+                push_due(
+                    EPISODE_STEPS,
+                    round(self.ranges.push_interval_s / robot.CONTROL_DT),
+                    self.ranges.push_velocity,
+                ),
+            ]
+        )
+        self.gait_table = gait.cycle_table(robot.CONTROL_DT)
         self._sensor_views(sensors)
 
         self.rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self.step_count = np.zeros(n, dtype=int)
-        self.phase = np.zeros(n)
+        self.gait_step = np.zeros(n, dtype=int)  # control steps into the gait cycle
         self.command = np.zeros((n, 3))
         self.actions = np.zeros((n, 3, robot.NUM_JOINTS))  # a_t, a_{t-1}, a_{t-2}
         self.joint_vel = np.zeros((n, robot.NUM_JOINTS))
@@ -130,24 +150,32 @@ class ZerithTask:
         self._uniforms = np.zeros((n, STEP_DRAWS))
 
     def _sensor_views(self, sensors: dict[str, slice]) -> None:
-        def idx(*names: str) -> np.ndarray:
-            return np.concatenate([np.arange(sensors[name].start, sensors[name].stop) for name in names])
+        """Slices of sensordata for each quantity; sensors of one quantity are contiguous in the MJCF."""
 
-        joints = robot.JOINT_NAMES
-        self._s_base_pos = idx("base_pos")
-        self._s_heading = idx("base_heading")
-        self._s_base_up = idx("base_up")
-        self._s_linvel = idx("base_linvel")
-        self._s_angvel = idx("base_angvel")
-        self._s_qpos = idx(*(f"{j}_pos" for j in joints))
-        self._s_qvel = idx(*(f"{j}_vel" for j in joints))
-        self._s_torque = idx(*(f"{j}_torque" for j in joints))
-        self._s_foot_pos = idx("left_foot_pos", "right_foot_pos")
-        self._s_foot_up = idx("left_foot_up", "right_foot_up")
-        self._s_foot_vel = idx("left_foot_linvel", "right_foot_linvel")
-        self._s_foot_force = idx("left_foot_force", "right_foot_force")
+        def block(*names: str) -> slice:
+            parts = [sensors[name] for name in names]
+            if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
+                raise ValueError(f"sensors {names} must be contiguous in the model")
+            return slice(parts[0].start, parts[-1].stop)
+
+        joints, feet = robot.JOINT_NAMES, ("left_foot", "right_foot")
+        self._s_base_pos = block("base_pos")
+        self._s_heading = block("base_heading")
+        self._s_base_up = block("base_up")
+        self._s_linvel = block("base_linvel")
+        self._s_angvel = block("base_angvel")
+        self._s_qpos = block(*(f"{j}_pos" for j in joints))
+        self._s_qvel = block(*(f"{j}_vel" for j in joints))
+        self._s_torque = block(*(f"{j}_torque" for j in joints))
+        self._s_foot_pos = block(*(f"{f}_pos" for f in feet))
+        self._s_foot_up = block(*(f"{f}_up" for f in feet))
+        self._s_foot_vel = block(*(f"{f}_linvel" for f in feet))
+        self._s_foot_force = block(*(f"{f}_force" for f in feet))
         self._s_collision = sensors["leg_collision"].start
         self._hip_roll_yaw = np.array([0, 1, 6, 7])
+        self._xy_of_two = np.array([0, 1, 3, 4])
+        self._z_of_two = np.array([2, 5])
+        self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
 
     # ----------------------------------------------------------------------------------------- reset
     def reset(self, ids: np.ndarray) -> tuple[DomainParams, np.ndarray]:
@@ -183,7 +211,7 @@ class ZerithTask:
             else sample_commands(command_uniforms, self.scenario.command_ranges)
         )
         self.step_count[ids] = 0
-        self.phase[ids] = 0.0
+        self.gait_step[ids] = 0
         self.actions[ids] = 0.0
         self.joint_vel[ids] = 0.0
         self.force[ids] = 0.0
@@ -206,19 +234,22 @@ class ZerithTask:
         targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * self.actions
         for i, rng in enumerate(self.rngs):
             self._uniforms[i] = rng.random(STEP_DRAWS)
-        u, step = self._uniforms, self.step_count
-        self.force = update_forces(step, u[:, _FORCE], self.force, self.scenario.force)
-        if self.fixed_command is None:
-            due = (step > 0) & (step % self.command_interval == 0)
-            if due.any():
-                self.command[due] = sample_commands(u[due, _COMMAND], self.scenario.command_ranges)
-        kicks = push_kicks(step, u[:, _PUSH], self.ranges.push_velocity, self.push_interval)
+        u = self._uniforms
+        due = self._due[self.step_count]
+        self.force = update_forces(
+            due[:, 0], due[:, 1], u[:, _FORCE], self.force, self.scenario.force.magnitude
+        )
+        if due[:, 2].any():
+            self.command[due[:, 2]] = sample_commands(u[due[:, 2], _COMMAND], self.scenario.command_ranges)
+        kicks = None
+        if due[:, 3].any():
+            kicks = horizontal_vectors(u[:, _PUSH], self.ranges.push_velocity)[:, :2] * due[:, 3:4]
         return targets, self.force, kicks
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
-        """Observations, rewards and episode ends from the sensors (n, nsensordata) after the physics steps."""
+        """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
         self.step_count += 1
-        self.phase = (self.phase + self._phase_step) % 1.0
+        self.gait_step = (self.gait_step + 1) % len(self.gait_table)
         if unstable.any():
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         ev = self._evaluate(slice(None), sensordata, with_rewards=True)
@@ -256,69 +287,65 @@ class ZerithTask:
         return ev.policy, ev.critic
 
     def _evaluate(self, sel: slice | np.ndarray, s: np.ndarray, with_rewards: bool) -> _Evaluation:
-        """Everything computed from the sensors of robots `sel`; changes no state."""
+        """Everything computed from the sensors `s` of robots `sel`; changes no state."""
         n = len(s)
-        command, phase, actions = self.command[sel], self.phase[sel], self.actions[sel]
+        command, actions = self.command[sel], self.actions[sel]
+        clock = self.gait_table[self.gait_step[sel]]  # (n, 8), see gait.cycle_table
+        stance = clock[:, 2:4]
         base_pos, heading, up = s[:, self._s_base_pos], s[:, self._s_heading], s[:, self._s_base_up]
         linvel, angvel = s[:, self._s_linvel], s[:, self._s_angvel]
         qpos, qvel = s[:, self._s_qpos], s[:, self._s_qvel]
-        foot_pos = s[:, self._s_foot_pos].reshape(n, 2, 3)
-        foot_force = s[:, self._s_foot_force].reshape(n, 2, 3)
+        foot_pos = s[:, self._s_foot_pos]  # (n, 6): left xyz, right xyz
+        foot_force = s[:, self._s_foot_force]
+        foot_z = foot_pos[:, self._z_of_two]
 
-        yaw_norm = np.sqrt(heading[:, 0] ** 2 + heading[:, 1] ** 2) + 1e-9
-        cos_yaw, sin_yaw = heading[:, 0] / yaw_norm, heading[:, 1] / yaw_norm
         if self.terrain.is_plane:
             base_height = base_pos[:, 2]
-            foot_clearance = foot_pos[..., 2]
-            height_samples = np.repeat(foot_clearance, len(HEIGHT_SAMPLE_OFFSETS), axis=1)
+            foot_clearance = foot_z
+            height_samples = np.repeat(foot_z, len(HEIGHT_SAMPLE_OFFSETS), axis=1)
         else:
             base_height = base_pos[:, 2] - self.terrain.height_at(base_pos[:, :2])
-            foot_clearance = foot_pos[..., 2] - self.terrain.height_at(foot_pos[..., :2])
-            dx, dy = HEIGHT_SAMPLE_OFFSETS[:, 0], HEIGHT_SAMPLE_OFFSETS[:, 1]
-            offsets = np.stack(
-                [
-                    cos_yaw[:, None] * dx - sin_yaw[:, None] * dy,
-                    sin_yaw[:, None] * dx + cos_yaw[:, None] * dy,
-                ],
-                axis=-1,
-            )  # (n, 9, 2), in the world frame
-            points = foot_pos[:, :, None, :2] + offsets[:, None]
-            height_samples = (foot_pos[:, :, None, 2] - self.terrain.height_at(points)).reshape(n, -1)
+            feet_xy = foot_pos[:, self._xy_of_two].reshape(n, 2, 2)
+            foot_clearance = foot_z - self.terrain.height_at(feet_xy)
+            points = feet_xy[:, :, None, :] + _rotate(HEIGHT_SAMPLE_OFFSETS, heading)[:, None]  # (n, 2, 9, 2)
+            height_samples = (foot_z[:, :, None] - self.terrain.height_at(points)).reshape(n, -1)
 
-        foot_phase = gait.foot_phases(phase)
-        stance = gait.desired_contact(foot_phase)
-        foot_contact = foot_force[..., 2] > CONTACT_THRESHOLD
+        foot_contact = foot_force[:, self._z_of_two] > CONTACT_THRESHOLD
         joint_offset = qpos - robot.DEFAULT_JOINT_POS
 
         terms = None
         if with_rewards:
-            rel = foot_pos[..., :2] - base_pos[:, None, :2]
-            foot_xy_yaw = np.stack(
-                [cos_yaw[:, None] * rel[..., 0] + sin_yaw[:, None] * rel[..., 1],
-                 cos_yaw[:, None] * rel[..., 1] - sin_yaw[:, None] * rel[..., 0]],
-                axis=-1,
-            )  # fmt: skip
+            # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
+            norm = np.hypot(heading[:, 0:1], heading[:, 1:2]) + 1e-9
+            cos_yaw, sin_yaw = heading[:, 0:1] / norm, heading[:, 1:2] / norm
+            rel_x = foot_pos[:, 0::3] - base_pos[:, 0:1]
+            rel_y = foot_pos[:, 1::3] - base_pos[:, 1:2]
+            shift = clock[:, 6:8]  # Raibert: feet ahead/behind the hips by shift * commanded velocity
+            raibert_error = np.concatenate(
+                [
+                    cos_yaw * rel_x + sin_yaw * rel_y - shift * command[:, 0:1],
+                    cos_yaw * rel_y - sin_yaw * rel_x - shift * command[:, 1:2] - self._half_stance,
+                ],
+                axis=1,
+            )  # x left, x right, y left, y right
             terms = reward_terms(
                 command=command,
                 base_linvel=linvel,
                 base_angvel=angvel,
                 base_up=up,
-                base_height=base_height,
-                target_height=robot.STANDING_HEIGHT,
+                height_error=base_height - robot.STANDING_HEIGHT,
                 joint_vel=qvel,
-                joint_acc=(qvel - self.joint_vel[sel]) / robot.CONTROL_DT,
+                joint_acc=(qvel - self.joint_vel[sel]) * (1.0 / robot.CONTROL_DT),
                 torques=s[:, self._s_torque],
                 outside_limits=((qpos < self.soft_low) | (qpos > self.soft_high)).any(axis=1),
                 hip_roll_yaw=joint_offset[:, self._hip_roll_yaw],
-                foot_tilt=np.arccos(np.clip(s[:, self._s_foot_up[2::3]], -1.0, 1.0)),
-                foot_vel_xy=s[:, self._s_foot_vel].reshape(n, 2, 3)[..., :2],
+                foot_up_z=s[:, self._s_foot_up][:, self._z_of_two],
+                foot_speed_xy=s[:, self._s_foot_vel][:, self._xy_of_two],
                 foot_force=foot_force,
                 foot_contact=foot_contact,
-                foot_clearance=foot_clearance,
-                foot_xy_yaw_frame=foot_xy_yaw,
+                swing_height_error=foot_clearance - clock[:, 4:6],
+                raibert_error=raibert_error,
                 stance=stance,
-                swing_target=gait.swing_height_target(foot_phase),
-                raibert_target=gait.raibert_targets(foot_phase, command, robot.HIP_WIDTH),
                 leg_collision=s[:, self._s_collision] > 0,
                 action=actions[:, 0],
                 last_action=actions[:, 1],
@@ -326,26 +353,34 @@ class ZerithTask:
             )
             terms *= self.reward_weights
 
-        policy = np.empty((n, POLICY_SIZE))
-        policy[:, 0] = np.arctan2(up[:, 1], up[:, 2])
-        policy[:, 1] = np.arcsin(np.clip(-up[:, 0], -1.0, 1.0))
-        policy[:, _P["base_angular_velocity"]] = angvel
-        policy[:, 5] = np.sin(2.0 * np.pi * phase)
-        policy[:, 6] = np.cos(2.0 * np.pi * phase)
-        policy[:, _P["command"]] = command
-        policy[:, _P["joint_position_offset"]] = joint_offset
-        policy[:, _P["joint_velocity"]] = qvel
-        policy[:, _P["last_action"]] = actions[:, 0]
-        critic = np.empty((n, CRITIC_SIZE), dtype=np.float32)
-        critic[:, _C["policy_noiseless"]] = policy
-        critic[:, _C["base_linear_velocity"]] = linvel
-        critic[:, _C["base_height"].start] = base_height
-        critic[:, _C["foot_height_samples"]] = height_samples
-        critic[:, _C["foot_contact"]] = foot_contact
-        critic[:, _C["foot_contact_force"]] = foot_force.reshape(n, 6)
-        critic[:, _C["desired_contact"]] = stance
-        critic[:, _C["external_force"]] = self.force[sel]
-        critic[:, _DOMAIN] = self.domain_vector[sel]
+        policy = np.concatenate(
+            [
+                np.arctan2(up[:, 1:2], up[:, 2:3]),  # roll
+                np.arcsin(np.minimum(np.maximum(-up[:, 0:1], -1.0), 1.0)),  # pitch
+                angvel,
+                clock[:, 0:2],
+                command,
+                joint_offset,
+                qvel,
+                actions[:, 0],
+            ],
+            axis=1,
+        )
+        critic = np.concatenate(
+            [
+                policy,
+                linvel,
+                base_height[:, None],
+                height_samples,
+                foot_contact,
+                foot_force,
+                stance,
+                self.force[sel],
+                self.domain_vector[sel],
+            ],
+            axis=1,
+            dtype=np.float32,
+        )
         if self.noise_scale.any():
             policy += (2.0 * self._uniforms[sel, _NOISE] - 1.0) * self.noise_scale
         velocity_error = linvel[:, :2] - command[:, :2]
@@ -356,10 +391,24 @@ class ZerithTask:
             qvel=qvel,
             base_height=base_height,
             up_z=up[:, 2],
-            lin_vel_error=np.sqrt(velocity_error[:, 0] ** 2 + velocity_error[:, 1] ** 2),
+            lin_vel_error=np.hypot(velocity_error[:, 0], velocity_error[:, 1]),
             ang_vel_error=np.abs(angvel[:, 2] - command[:, 2]),
         )
 
     def episode_terms(self, i: int) -> dict[str, float]:
         """Per-term sums of the weighted rewards over robot i's episode so far."""
         return dict(zip(REWARD_NAMES, self.episode_sums[i].tolist(), strict=True))
+
+
+def _rotate(xy: np.ndarray, heading: np.ndarray, inverse: bool = False) -> np.ndarray:
+    """Rotate points xy (..., 2) by each robot's yaw (given by its heading vector (n, 3)), or by minus it.
+
+    `xy` is (k, 2) (the same points for every robot) or (n, k, 2); the result is (n, k, 2).
+    """
+    norm = np.hypot(heading[:, 0], heading[:, 1]) + 1e-9
+    c = (heading[:, 0] / norm)[:, None]
+    s = (heading[:, 1] / norm)[:, None]
+    if inverse:
+        s = -s
+    x, y = xy[..., 0], xy[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y], axis=-1)

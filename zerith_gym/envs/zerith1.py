@@ -22,7 +22,7 @@ from zerith_gym.physics import (
     warning_count,
 )
 from zerith_gym.rewards import resolve_reward_weights
-from zerith_gym.scenarios import SCENARIOS, get_scenario
+from zerith_gym.scenarios import SCENARIOS, Scenario, get_scenario
 from zerith_gym.task import ZerithTask
 from zerith_gym.terrain import Terrain
 
@@ -68,7 +68,7 @@ class Zerith1Env(gym.Env):
     observation is returned with reward 0).
 
     ## Arguments
-    - `scenario`: one of `zerith_gym.SCENARIOS` (default "train").
+    - `scenario`: a name in `zerith_gym.SCENARIOS` (default "train"), or a custom `Scenario`.
     - `obs_mode`: "dict" or "policy".
     - `command`: fixed (vx, vy, yaw rate); default: drawn during the episode (train, nominal) or
       (1, 0, 0) in the evaluation scenarios. `reset(options={"command": ...})` sets it for one episode.
@@ -85,7 +85,7 @@ class Zerith1Env(gym.Env):
 
     def __init__(
         self,
-        scenario: str = "train",
+        scenario: str | Scenario = "train",
         obs_mode: str = "dict",
         command: tuple[float, float, float] | None = None,
         reward_weights: Mapping[str, float] | None = None,
@@ -94,13 +94,12 @@ class Zerith1Env(gym.Env):
         height: int = 480,
         terrain_seed: int = 0,
     ) -> None:
-        self.scenario = get_scenario(scenario)
+        self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
         if obs_mode not in OBS_MODES:
             raise ValueError(f"unknown obs_mode {obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"unknown render_mode {render_mode!r}; valid values: None, {', '.join(self.metadata['render_modes'])}"
-            )
+            modes = ", ".join(self.metadata["render_modes"])
+            raise ValueError(f"unknown render_mode {render_mode!r}; valid values: None, {modes}")
         if command is not None:
             command = tuple(_check_command(command, "command"))
         elif self.scenario.command is not None:
