@@ -1,0 +1,297 @@
+"""HuRiPPO end to end: learning, asymmetric observations, what SB3 users rely on, bad input."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+from stable_baselines3 import PPO
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.logger import KVWriter, Logger
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from sb3_huri import VARIANTS, HuRiPolicy, HuRiPPO
+
+SMALL = dict(n_steps=32, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
+
+
+class PendulumWithCritic(gym.ObservationWrapper):
+    """Pendulum with an asymmetric observation: the usual vector for the actor, the state for the critic."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.observation_space = spaces.Dict(
+            {
+                "policy": env.observation_space,
+                "critic": spaces.Box(-np.inf, np.inf, (2,), np.float32),
+            }
+        )
+
+    def observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
+        return {"policy": observation, "critic": np.asarray(self.unwrapped.state, dtype=np.float32)}
+
+
+def dict_env(n_envs: int = 2, seed: int = 0, max_episode_steps: int = 200):
+    return make_vec_env(
+        "Pendulum-v1",
+        n_envs=n_envs,
+        seed=seed,
+        env_kwargs=dict(max_episode_steps=max_episode_steps),
+        wrapper_class=PendulumWithCritic,
+    )
+
+
+class KeyRecorder(KVWriter):
+    """Keeps every logged key/value."""
+
+    def __init__(self):
+        self.records: dict[str, list] = {}
+
+    def write(self, key_values, key_excluded, step=0):
+        for key, value in key_values.items():
+            self.records.setdefault(key, []).append(value)
+
+
+def state_dicts_equal(first: dict, second: dict) -> None:
+    assert first.keys() == second.keys()
+    for key in first:
+        if isinstance(first[key], dict):
+            state_dicts_equal(first[key], second[key])
+        elif isinstance(first[key], th.Tensor):
+            th.testing.assert_close(first[key], second[key], rtol=0, atol=0, msg=key)
+        else:
+            assert first[key] == second[key], key
+
+
+# --- learning --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_every_variant_learns_on_pendulum_with_several_envs(variant):
+    env = make_vec_env("Pendulum-v1", n_envs=2, seed=0, env_kwargs=dict(max_episode_steps=40))
+    model = HuRiPPO("MlpPolicy", env, variant=variant, seed=0, **SMALL)
+    before = model.policy.parameters_to_vector()
+    model.learn(128)
+    assert model.num_timesteps == 128
+    assert not np.allclose(model.policy.parameters_to_vector(), before)
+    assert (model.policy.rnd is not None) == VARIANTS[variant].use_rnd
+    assert model.policy.n_quantiles == (64 if VARIANTS[variant].distributional else 1)
+    assert model.rollout_buffer.has_time_outs
+
+
+def test_discrete_actions_learn():
+    model = HuRiPPO("MlpPolicy", make_vec_env("CartPole-v1", n_envs=2, seed=0), seed=0, **SMALL).learn(64)
+    action, _ = model.predict(np.zeros(4, dtype=np.float32), deterministic=True)
+    assert action in (0, 1)
+
+
+def test_zerith1_learns_with_several_envs_and_time_outs():
+    pytest.importorskip("zerith_gym")
+    env = make_vec_env("Zerith1-v0", n_envs=2, seed=0, env_kwargs=dict(max_episode_steps=12))
+    model = HuRiPPO("MlpPolicy", env, n_steps=24, n_epochs=1, seed=0)
+    assert model.policy.mlp_extractor.actor_dim == 46
+    assert model.policy.features_dim == 46 + spaces.flatdim(env.observation_space["critic"])
+    model.learn(96)
+    assert model.num_timesteps == 96 and model.rollout_buffer.has_time_outs
+    assert np.isfinite(model.rollout_buffer.advantages).all()
+
+
+def test_zerith1_flat_policy_observation_works_with_plain_mlp():
+    pytest.importorskip("zerith_gym")
+    env = make_vec_env("Zerith1-v0", n_envs=1, seed=0, env_kwargs=dict(obs_mode="policy"))
+    model = HuRiPPO(
+        "MlpPolicy", env, n_steps=16, n_epochs=1, seed=0, **{"policy_kwargs": dict(net_arch=[32])}
+    )
+    assert model.policy.features_dim == 46
+    model.learn(16)
+
+
+# --- asymmetric actor-critic ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("policy", ["MlpPolicy", "MultiInputPolicy", HuRiPolicy])
+def test_dict_observation_gives_an_asymmetric_policy(policy):
+    model = HuRiPPO(policy, dict_env(), seed=0, **SMALL)
+    assert model.policy.mlp_extractor.actor_dim == 3
+    assert model.policy.mlp_extractor.policy_net[0].in_features == 3
+    assert model.policy.mlp_extractor.value_net[0].in_features == 5
+    assert model.policy.rnd.predictor[0].in_features == 5
+    model.learn(64)
+
+
+def test_actor_ignores_the_critic_key_and_critic_reads_it():
+    model = HuRiPPO("MlpPolicy", dict_env(), seed=0, **SMALL)
+    policy_obs = np.random.default_rng(0).normal(size=(5, 3)).astype(np.float32)
+    obs_a = {"policy": policy_obs, "critic": np.zeros((5, 2), np.float32)}
+    obs_b = {"policy": policy_obs, "critic": np.full((5, 2), 3.0, np.float32)}
+    actions_a, _ = model.predict(obs_a, deterministic=True)
+    actions_b, _ = model.predict(obs_b, deterministic=True)
+    np.testing.assert_array_equal(actions_a, actions_b)
+    tensor_a, tensor_b = model.policy.obs_to_tensor(obs_a)[0], model.policy.obs_to_tensor(obs_b)[0]
+    with th.no_grad():
+        mean_a = model.policy.get_distribution(tensor_a).distribution.mean
+        th.testing.assert_close(mean_a, model.policy.get_distribution(tensor_b).distribution.mean)
+        assert not th.allclose(model.policy.predict_values(tensor_a), model.policy.predict_values(tensor_b))
+
+
+def test_sb3_ppo_can_use_the_asymmetric_policy_with_a_scalar_critic():
+    model = PPO(
+        HuRiPolicy, dict_env(), n_steps=32, batch_size=32, policy_kwargs=dict(n_quantiles=1, net_arch=[32])
+    )
+    model.learn(64)
+    assert model.policy.mlp_extractor.actor_dim == 3
+
+
+# --- logging ----------------------------------------------------------------------------------------
+
+
+def test_risk_and_loss_keys_are_logged():
+    model = HuRiPPO("MlpPolicy", dict_env(), seed=0, **SMALL)
+    recorder = KeyRecorder()
+    model.set_logger(Logger(folder=None, output_formats=[recorder]))
+    model.learn(128)
+    expected = {
+        *("rollout/beta_mean", "rollout/iqr_mean", "rollout/rnd_error", "rollout/beta_iqr_averse"),
+        *("rollout/beta_iqr_neutral", "rollout/beta_iqr_seeking", "train/quantile_loss"),
+        *("train/expectation_loss", "train/rnd_loss", "train/policy_gradient_loss", "train/value_loss"),
+    }
+    assert expected <= recorder.records.keys()
+    shares = [recorder.records[f"rollout/beta_iqr_{kind}"][-1] for kind in ("averse", "neutral", "seeking")]
+    assert sum(shares) == pytest.approx(1.0)
+
+
+def test_progress_bar_and_tensorboard(tmp_path):
+    pytest.importorskip("tensorboard")
+    model = HuRiPPO("MlpPolicy", "Pendulum-v1", tensorboard_log=str(tmp_path), **SMALL)
+    model.learn(64, progress_bar=True)
+    assert list(tmp_path.glob("HuRiPPO_1/events.out.tfevents.*"))
+
+
+# --- save, load, predict, seeding -------------------------------------------------------------------
+
+
+def test_save_load_round_trip_keeps_everything_and_learning_continues(tmp_path):
+    env = dict_env(max_episode_steps=20)
+    model = HuRiPPO("MultiInputPolicy", env, variant="huri", seed=0, **SMALL).learn(64)
+    observations = env.reset()
+    actions, _ = model.predict(observations, deterministic=True)
+    model.save(tmp_path / "model.zip")
+
+    loaded = HuRiPPO.load(tmp_path / "model.zip", env=env)
+    state_dicts_equal(model.policy.state_dict(), loaded.policy.state_dict())
+    assert loaded.policy.rnd.obs_rms.count == model.policy.rnd.obs_rms.count > 1
+    np.testing.assert_array_equal(loaded.policy.rnd.obs_rms.var, model.policy.rnd.obs_rms.var)
+    state_dicts_equal(model.policy.optimizer.state_dict(), loaded.policy.optimizer.state_dict())
+    state_dicts_equal(model.policy.rnd.optimizer.state_dict(), loaded.policy.rnd.optimizer.state_dict())
+    np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0], actions)
+    assert (loaded.variant, loaded.n_quantiles, loaded.use_rnd, loaded.batch_size) == ("huri", 64, True, 16)
+
+    before = loaded.policy.parameters_to_vector()
+    rnd_before = loaded.policy.rnd.predictor[0].weight.detach().clone()
+    loaded.learn(64, reset_num_timesteps=False)
+    assert loaded.num_timesteps == 128
+    assert not np.allclose(loaded.policy.parameters_to_vector(), before)
+    assert not th.allclose(loaded.policy.rnd.predictor[0].weight, rnd_before)
+
+
+def test_policy_alone_save_load(tmp_path):
+    model = HuRiPPO("MlpPolicy", dict_env(), seed=0, **SMALL).learn(64)
+    model.policy.save(tmp_path / "policy.pth")
+    policy = HuRiPolicy.load(tmp_path / "policy.pth")
+    state_dicts_equal(model.policy.state_dict(), policy.state_dict())
+    obs = {"policy": np.ones((4, 3), np.float32), "critic": np.ones((4, 2), np.float32)}
+    np.testing.assert_array_equal(
+        policy.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]
+    )
+
+
+def test_set_env_and_predict_shapes():
+    model = HuRiPPO("MlpPolicy", "Pendulum-v1", **SMALL)
+    model.set_env(make_vec_env("Pendulum-v1", n_envs=1, seed=1))
+    single, state = model.predict(np.zeros(3, np.float32), deterministic=True)
+    batch, _ = model.predict(np.zeros((4, 3), np.float32), deterministic=True)
+    assert single.shape == (1,) and batch.shape == (4, 1) and state is None
+    # Deterministic predictions repeat; stochastic ones vary.
+    obs = np.random.default_rng(0).normal(size=(8, 3)).astype(np.float32)
+    np.testing.assert_array_equal(
+        model.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]
+    )
+    assert not np.array_equal(model.predict(obs)[0], model.predict(obs)[0])
+
+
+def test_same_seed_same_result():
+    def train() -> np.ndarray:
+        model = HuRiPPO("MlpPolicy", dict_env(max_episode_steps=20), seed=7, sr_lambda=0.5, **SMALL).learn(
+            128
+        )
+        return np.concatenate(
+            [model.policy.parameters_to_vector(), model.rollout_buffer.target_atoms.ravel()]
+        )
+
+    np.testing.assert_array_equal(train(), train())
+
+
+def test_vecnormalize_and_callable_schedules():
+    env = VecNormalize(dict_env(), norm_obs=True, norm_reward=True)
+    model = HuRiPPO(
+        "MlpPolicy",
+        env,
+        learning_rate=lambda progress: 1e-3 * progress,
+        clip_range=lambda p: 0.3 * p,
+        **SMALL,
+    )
+    recorder = KeyRecorder()
+    model.set_logger(Logger(folder=None, output_formats=[recorder]))
+    model.learn(192)
+    # Updates happen at progress remaining 1 - 64/192 and 1 - 128/192.
+    np.testing.assert_allclose(recorder.records["train/learning_rate"], [1e-3 * 2 / 3, 1e-3 / 3])
+    np.testing.assert_allclose(recorder.records["train/clip_range"], [0.3 * 2 / 3, 0.3 / 3])
+    assert env.obs_rms["critic"].count > 1
+
+
+@pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_device():
+    model = HuRiPPO("MlpPolicy", dict_env(), device="cuda", **SMALL).learn(64)
+    assert model.policy.rnd.predictor[0].weight.is_cuda
+
+
+# --- bad input --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        (dict(variant="huri-lite"), "variant"),
+        (dict(n_quantiles=1), "n_quantiles"),
+        (dict(iqr_thresholds=(0.7, 0.3)), "iqr_thresholds"),
+        (dict(sr_lambda=1.5), "sr_lambda"),
+        (dict(distortion="exponential"), "distortion"),
+        (dict(cvar_alpha=0.0), "cvar_alpha"),
+        (dict(cvar_alpha=1.2, variant="cvar0.5"), "cvar_alpha"),
+        (dict(batch_size=1000), "batch_size"),
+        (dict(n_minibatches=200), "n_minibatches"),
+        (dict(gamma=1.5), "gamma"),
+        (dict(variant="baseline", use_rnd=True), "use_rnd"),
+        (dict(policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
+        (dict(iqr_risk_levels=(1.0, 0.0)), "iqr_risk_levels"),
+    ],
+)
+def test_bad_hyperparameters_raise_value_errors_naming_them(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=64, **kwargs)
+
+
+class TupleActionEnv(gym.Env):
+    observation_space = spaces.Box(-1, 1, (2,), np.float32)
+    action_space = spaces.Tuple((spaces.Discrete(2), spaces.Discrete(3)))
+
+    def reset(self, *, seed=None, options=None):
+        return np.zeros(2, np.float32), {}
+
+    def step(self, action):
+        return np.zeros(2, np.float32), 0.0, False, False, {}
+
+
+def test_unsupported_action_space_fails_clearly():
+    with pytest.raises(ValueError, match="action space"):
+        HuRiPPO("MlpPolicy", DummyVecEnv([TupleActionEnv]))
