@@ -16,7 +16,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-import zerith_gym  # noqa: F401
+import zerith_gym
 from zerith_gym import robot
 
 
@@ -33,7 +33,8 @@ def physics_rate(env: zerith_gym.Zerith1Env, steps: int) -> float:
 
 def env_rate(env: gym.Env, steps: int, seed: int = 0) -> float:
     """Control steps/s of `env.step` with uniform random actions (drawn beforehand), resets included."""
-    actions = np.random.default_rng(seed).uniform(-1.0, 1.0, size=(steps, robot.NUM_JOINTS)).astype(np.float32)
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-1.0, 1.0, size=(steps, robot.NUM_JOINTS)).astype(np.float32)
     env.reset(seed=seed)
     start = time.perf_counter()
     for action in actions:

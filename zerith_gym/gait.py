@@ -17,7 +17,9 @@ GAIT_PERIOD = 0.7
 SWING_HEIGHT = 0.09
 """Peak sole clearance (m) commanded mid-swing."""
 CONTACT_SMOOTHING = 0.07
-"""Width (in phase units) of the logistic edges of the smoothed stance indicator C_foot."""
+"""Standard deviation (phase units) of the smoothed edges of the stance indicator C_foot."""
+_LOGISTIC_TO_NORMAL = 1.702
+"""S(1.702 x) approximates the standard normal CDF within 0.01 (the kernel Walk-These-Ways uses)."""
 FOOT_PHASE_OFFSETS = np.array([0.0, 0.5])
 _EDGES = np.array([0.0, 0.5, 1.0, 1.5])
 
@@ -30,10 +32,11 @@ def foot_phases(phase: np.ndarray) -> np.ndarray:
 def desired_contact(foot_phase: np.ndarray, smoothing: float = CONTACT_SMOOTHING) -> np.ndarray:
     """Smoothed stance indicator C_foot in [0, 1] (1 = the foot should be on the ground), shape (n, 2).
 
-    C = S(phi) (1 - S(phi - 0.5)) + S(phi - 1) (1 - S(phi - 1.5)) with S a logistic of width `smoothing`;
-    the second product makes the indicator continuous where the phase wraps from 1 to 0.
+    C = S(phi) (1 - S(phi - 0.5)) + S(phi - 1) (1 - S(phi - 1.5)), with S(x) a smooth step of standard
+    deviation `smoothing` (a logistic matched to the normal CDF); the second product makes the indicator
+    continuous where the phase wraps from 1 to 0.
     """
-    s = 1.0 / (1.0 + np.exp((_EDGES - foot_phase[..., None]) / smoothing))
+    s = 1.0 / (1.0 + np.exp((_EDGES - foot_phase[..., None]) * (_LOGISTIC_TO_NORMAL / smoothing)))
     return s[..., 0] * (1.0 - s[..., 1]) + s[..., 2] * (1.0 - s[..., 3])
 
 

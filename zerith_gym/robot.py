@@ -25,8 +25,8 @@ ACTION_SCALE = np.array([0.4, 0.4, 0.8, 1.0, 0.6, 0.4] * 2)
 """Joint-position offset (rad) produced by an action of +-1, per joint."""
 
 # Nominal PD gains and torque limits: these must match the MJCF <default> classes (checked by the tests).
-KP = np.array([100.0, 100.0, 150.0, 300.0, 160.0, 60.0] * 2)
-KD = np.array([3.0, 3.0, 4.0, 6.0, 4.0, 2.0] * 2)
+KP = np.array([100.0, 100.0, 200.0, 350.0, 300.0, 60.0] * 2)
+KD = np.array([3.0, 3.0, 5.0, 7.0, 6.0, 2.0] * 2)
 TORQUE_LIMIT = np.array([60.0, 100.0, 120.0, 150.0, 60.0, 40.0] * 2)
 
 TOTAL_MASS = 36.0
