@@ -142,6 +142,25 @@ def test_sb3_ppo_can_use_the_asymmetric_policy_with_a_scalar_critic():
     assert model.policy.mlp_extractor.actor_dim == 3
 
 
+@pytest.mark.parametrize("variant", ["huri-no-rnd", "huri", "cvar0.5", "baseline"])
+def test_assess_risk_gives_the_rollout_values_and_the_variants_risk(variant):
+    model = HuRiPPO("MlpPolicy", dict_env(n_envs=1), variant=variant, seed=0, **SMALL)
+    model.learn(32)
+    first_obs = {key: obs[0] for key, obs in model.rollout_buffer.observations.items()}
+    assessment = model.assess_risk(first_obs)
+    assert assessment.atoms.shape == (1, model.n_quantiles)
+    assert (np.diff(assessment.atoms, axis=-1) >= 0).all()
+    assert assessment.atoms.min() <= assessment.value[0] <= assessment.atoms.max()
+    if variant == "huri-no-rnd":
+        assert assessment.risk[0] in (-1.0, 0.0, 1.0)
+    elif variant == "huri":
+        iqr_level = assessment.risk[0] - np.tanh(assessment.rnd_error[0])
+        assert assessment.rnd_error[0] > 0 and min(abs(iqr_level - level) for level in (-1, 0, 1)) < 1e-5
+    elif variant == "cvar0.5":
+        assert assessment.risk[0] == 0.5
+        assert assessment.value[0] == pytest.approx(assessment.atoms[0, :32].mean(), rel=1e-5)
+
+
 # --- logging ----------------------------------------------------------------------------------------
 
 

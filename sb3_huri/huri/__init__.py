@@ -1,7 +1,15 @@
 """HuRiPPO: adaptive risk-aware distributional PPO."""
 
-from sb3_huri.huri.huri import HuRiPPO
+from sb3_huri.huri.huri import HuRiPPO, RiskAssessment
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.variants import VARIANTS, RiskPreset
 
-__all__ = ["VARIANTS", "HuRiPPO", "HuRiPolicy", "MlpPolicy", "MultiInputPolicy", "RiskPreset"]
+__all__ = [
+    "VARIANTS",
+    "HuRiPPO",
+    "HuRiPolicy",
+    "MlpPolicy",
+    "MultiInputPolicy",
+    "RiskAssessment",
+    "RiskPreset",
+]

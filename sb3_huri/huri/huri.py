@@ -1,7 +1,7 @@
 """HuRiPPO: adaptive risk-aware distributional PPO (HuRi) as a Stable-Baselines3 on-policy algorithm."""
 
 import warnings
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 import torch as th
@@ -25,6 +25,21 @@ from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, VARIANTS, RiskPreset
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
 
 SUPPORTED_ACTION_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
+
+
+class RiskAssessment(NamedTuple):
+    """The critic's view of a batch of observations (numpy arrays, one row per observation)."""
+
+    atoms: np.ndarray
+    """Predicted return atoms, sorted, shape ``(batch, n_quantiles)``."""
+    value: np.ndarray
+    """Distorted value ``V_beta``, the value the advantages use."""
+    risk: np.ndarray
+    """Risk parameter: Wang's ``beta`` (> 0 risk-averse) or CVaR's ``alpha``."""
+    iqr: np.ndarray
+    """Interquartile range of the atoms."""
+    rnd_error: np.ndarray
+    """RND novelty of the critic input (zero without RND)."""
 
 
 class HuRiPPO(OnPolicyAlgorithm):
@@ -359,6 +374,24 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
         if self.distributional:
             self._record_risk(buffer)
+
+    def assess_risk(self, observation: np.ndarray | dict[str, np.ndarray]) -> RiskAssessment:
+        """Return distribution, risk parameter and distorted value the critic gives to observations.
+
+        For analysis, e.g. tracking ``beta`` and the value distribution along an episode (paper Fig. 5).
+        Observations are taken as the policy sees them (normalized already when training used
+        ``VecNormalize``); a single observation or a batch.
+        """
+        obs_tensor, _ = self.policy.obs_to_tensor(observation)
+        with th.no_grad():
+            atoms = th.sort(self.policy.predict_values(obs_tensor), dim=-1).values
+            if self.policy.rnd is not None:
+                rnd_error = self.policy.rnd.prediction_error(self.policy.critic_features(obs_tensor))
+            else:
+                rnd_error = th.zeros(len(atoms), device=self.device)
+            risk, weights, iqr = self._assess_risk(atoms, rnd_error)
+            value = (weights * atoms).sum(dim=-1)
+        return RiskAssessment(*(tensor.cpu().numpy() for tensor in (atoms, value, risk, iqr, rnd_error)))
 
     def _assess_risk(self, atoms: th.Tensor, rnd_error: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """Per state: risk parameter, distortion weights over its sorted atoms, and IQR.
