@@ -143,7 +143,7 @@ def test_sb3_ppo_can_use_the_asymmetric_policy_with_a_scalar_critic():
 
 
 @pytest.mark.parametrize("variant", ["huri-no-rnd", "huri", "cvar0.5", "baseline"])
-def test_assess_risk_gives_the_rollout_values_and_the_variants_risk(variant):
+def test_assess_risk_reports_sorted_atoms_and_the_variants_risk(variant):
     model = HuRiPPO("MlpPolicy", dict_env(n_envs=1), variant=variant, seed=0, **SMALL)
     model.learn(32)
     first_obs = {key: obs[0] for key, obs in model.rollout_buffer.observations.items()}
