@@ -14,10 +14,9 @@ from zerith_gym import robot
 from zerith_gym.randomization import NUM_LINKS, DomainParams
 from zerith_gym.terrain import Terrain
 
-_BAD_STATE_WARNINGS = (
-    int(mujoco.mjtWarning.mjWARN_BADQPOS),
-    int(mujoco.mjtWarning.mjWARN_BADQVEL),
-    int(mujoco.mjtWarning.mjWARN_BADQACC),
+_BAD_STATE_WARNINGS = np.array(
+    [mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC],
+    dtype=int,
 )
 GROUND_CLEARANCE = 0.002
 """Gap (m) left between the lowest foot corner and the ground when the robot is placed at reset."""
@@ -112,7 +111,7 @@ def reset_state(
 
 def warning_count(data: mujoco.MjData) -> int:
     """How many bad-state warnings (NaN/huge qpos, qvel, qacc) MuJoCo has raised on `data`."""
-    return sum(data.warning[w].number for w in _BAD_STATE_WARNINGS)
+    return int(data.warning.number[_BAD_STATE_WARNINGS].sum())
 
 
 def state_is_bad(data: mujoco.MjData, warnings_before: int) -> bool:
