@@ -50,6 +50,10 @@ class _LoaderThenHook:
         self.loader.exec_module(module)
         _run_hooks(self.module_name)
 
+    def __getattr__(self, name: str):
+        # Anything else (get_code, is_package, ...) is the real loader's business.
+        return getattr(self.loader, name)
+
 
 class _RLZooFinder:
     """``sys.meta_path`` finder that only wraps the loader of the modules named in ``_HOOKS``."""

@@ -156,6 +156,15 @@ def test_hook_imports_nothing_heavy_at_interpreter_start(tmp_path: Path) -> None
 
 
 @requires_hook
+def test_hook_never_breaks_the_import_of_rl_zoo3(tmp_path: Path) -> None:
+    """With sb3_huri unimportable, importing rl_zoo3 still works, and the hook says what failed."""
+    probe = "import sys; sys.modules['sb3_huri'] = None; import rl_zoo3; print('huri' in rl_zoo3.ALGOS)"
+    result = run([sys.executable, "-c", probe], tmp_path)
+    assert result.stdout.strip() == "False"
+    assert "warning: sb3_huri.zoo.register_algorithms() failed when rl_zoo3 was imported" in result.stderr
+
+
+@requires_hook
 def test_importing_rl_zoo3_registers_every_method_and_the_env() -> None:
     import rl_zoo3
     from rl_zoo3.hyperparams_opt import HYPERPARAMS_SAMPLER
