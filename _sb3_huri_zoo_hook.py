@@ -7,8 +7,8 @@ RL Zoo has no plugin entry point, and its CLI checks ``--algo`` against ``rl_zoo
 Start-up cost is one small class: nothing is imported here but ``sys`` (no torch, no rl_zoo3, no sb3_huri).
 A finder at the front of ``sys.meta_path`` watches for three RL Zoo modules and, right after one of them has
 been executed, calls the matching function of ``sb3_huri.zoo`` (see ``_HOOKS``). Every other import costs
-one dictionary lookup. Failures never propagate into the user's program: they are reported on stderr with
-the hook-free fallback, ``python -m sb3_huri.zoo``.
+one dictionary lookup. Failures never propagate into the user's program: they are reported in one line on
+stderr, pointing to the hook-free wrapper ``python -m sb3_huri.zoo``.
 """
 
 import sys
@@ -30,7 +30,7 @@ def _run_hooks(module_name: str) -> None:
         except Exception as error:  # a start-up hook must never break the program that imported rl_zoo3
             sys.stderr.write(
                 f"warning: sb3_huri.zoo.{function}() failed when {module_name} was imported "
-                f"({type(error).__name__}: {error})\n"
+                f"({type(error).__name__}: {error}); `python -m sb3_huri.zoo` shows the full error\n"
             )
 
 

@@ -21,12 +21,12 @@ from typing import Any
 
 # RL Zoo algorithm name -> HuRiPPO ``variant``.
 METHODS = {
-    "huri": "huri",
+    "huri-baseline": "baseline",
+    "huri-cvar0.5": "cvar0.5",
     "huri-no-rnd": "huri-no-rnd",
     "huri-no-iqr": "huri-no-iqr",
+    "huri": "huri",
     "huri-cvar": "huri-cvar",
-    "huri-cvar0.5": "cvar0.5",
-    "huri-baseline": "baseline",
 }
 
 # The presets shipped inside the package (``sb3_huri/zoo/hyperparams`` links to the repository's
@@ -93,6 +93,9 @@ def method_class(variant: str) -> type:
     """``HuRiPPO`` with its ``variant`` fixed: the class RL Zoo builds for one method of the comparison."""
     from sb3_huri import HuRiPPO
 
+    if variant == "huri":
+        return HuRiPPO
+
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         if kwargs.setdefault("variant", variant) != variant:
             raise ValueError(
@@ -101,8 +104,6 @@ def method_class(variant: str) -> type:
             )
         HuRiPPO.__init__(self, *args, **kwargs)
 
-    if variant == "huri":
-        return HuRiPPO
     return type(
         f"HuRiPPO[{variant}]",
         (HuRiPPO,),
