@@ -13,8 +13,11 @@ import sys
 from pathlib import Path
 
 import gymnasium as gym
-import optuna
 import pytest
+
+pytest.importorskip("rl_zoo3", reason="RL Zoo is not installed (pip install -e '.[zoo]')")
+
+import optuna
 import yaml
 
 from sb3_huri import HuRiPPO
