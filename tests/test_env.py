@@ -150,6 +150,19 @@ def test_reward_weights_override():
     assert base.step(action)[1] != 0.0
 
 
+def test_joint_acceleration_penalty_uses_consecutive_joint_velocities():
+    weights = {**dict.fromkeys(REWARD_NAMES, 0.0), "joint_accelerations": 1.0}
+    env = Zerith1Env(scenario="nominal", reward_weights=weights)
+    obs, _ = env.reset(seed=0)
+    joint_velocity = slice(22, 34)  # noiseless joint velocities in the critic observation
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(5, 12))
+    for action in actions:
+        previous = obs["critic"][joint_velocity].astype(np.float64)
+        obs, reward, *_ = env.step(action)
+        acceleration = (obs["critic"][joint_velocity] - previous) / 0.02
+        assert reward == pytest.approx(0.02 * np.sum(acceleration**2), rel=1e-3)
+        assert reward > 0.0
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [

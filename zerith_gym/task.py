@@ -253,7 +253,7 @@ class ZerithTask:
         if unstable.any():
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         ev = self._evaluate(slice(None), sensordata, with_rewards=True)
-        self.joint_vel = ev.qvel
+        self.joint_vel[:] = ev.qvel  # a copy: `ev.qvel` may view the simulator's sensordata
         terms = ev.terms
         reward = terms.sum(axis=1)
         policy, critic = ev.policy, ev.critic
