@@ -6,7 +6,12 @@ Importing the package registers `Zerith1-v0`:
     import zerith_gym  # noqa: F401
 
     env = gym.make("Zerith1-v0", scenario="nominal", obs_mode="policy")
+
+`zerith_gym.make_vec_env(n, seed=...)` gives n robots in one process as a Stable-Baselines3 VecEnv
+(`ZerithVecEnv`); it is imported on first use, so importing the package does not import torch.
 """
+
+from typing import Any
 
 from gymnasium.envs.registration import register
 
@@ -14,10 +19,25 @@ from zerith_gym.envs.zerith1 import Zerith1Env
 from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS
 
-__all__ = ["DEFAULT_REWARD_WEIGHTS", "REWARD_NAMES", "SCENARIOS", "Zerith1Env"]
+__all__ = [
+    "DEFAULT_REWARD_WEIGHTS",
+    "REWARD_NAMES",
+    "SCENARIOS",
+    "Zerith1Env",
+    "ZerithVecEnv",
+    "make_vec_env",
+]
 
 register(
     id="Zerith1-v0",
     entry_point="zerith_gym.envs.zerith1:Zerith1Env",
     max_episode_steps=1000,
 )
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("ZerithVecEnv", "make_vec_env"):
+        from zerith_gym import vec_env
+
+        return getattr(vec_env, name)
+    raise AttributeError(f"module 'zerith_gym' has no attribute {name!r}")

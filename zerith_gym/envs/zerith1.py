@@ -8,35 +8,18 @@ from typing import Any
 import gymnasium as gym
 import mujoco
 import numpy as np
-from gymnasium import spaces
 
 from zerith_gym import robot
-from zerith_gym.disturbances import FORCE_TARGETS
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
-from zerith_gym.physics import (
-    NominalModel,
-    apply_domain,
-    build_model,
-    reset_state,
-    state_is_bad,
-    warning_count,
+from zerith_gym.batch import (
+    ACTION_SPACE,
+    ZerithBatch,
+    check_actions,
+    observation_space,
+    reset_command,
 )
-from zerith_gym.rewards import resolve_reward_weights
-from zerith_gym.scenarios import SCENARIOS, Scenario, get_scenario
-from zerith_gym.task import ZerithTask
-from zerith_gym.terrain import Terrain
+from zerith_gym.scenarios import SCENARIOS, Scenario
 
-OBS_MODES = ("dict", "policy")
-RESET_OPTIONS = ("command",)
-
-
-def _check_command(command: Any, where: str) -> np.ndarray:
-    value = np.asarray(command, dtype=float)
-    if value.shape != (3,) or not np.isfinite(value).all():
-        raise ValueError(
-            f"{where} must be three finite numbers (vx m/s, vy m/s, yaw rate rad/s), got {command!r}"
-        )
-    return value
+_ROBOT = np.array([0])
 
 
 class Zerith1Env(gym.Env):
@@ -94,100 +77,39 @@ class Zerith1Env(gym.Env):
         height: int = 480,
         terrain_seed: int = 0,
     ) -> None:
-        self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
-        if obs_mode not in OBS_MODES:
-            raise ValueError(f"unknown obs_mode {obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
+        self.observation_space = observation_space(obs_mode)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             modes = ", ".join(self.metadata["render_modes"])
             raise ValueError(f"unknown render_mode {render_mode!r}; valid values: None, {modes}")
-        if command is not None:
-            command = tuple(_check_command(command, "command"))
-        elif self.scenario.command is not None:
-            command = self.scenario.command
+        self.action_space = ACTION_SPACE
         self.obs_mode = obs_mode
         self.render_mode = render_mode
-
-        self.terrain = Terrain(self.scenario.terrain, seed=terrain_seed)
-        self.model = build_model(self.terrain)
-        self.data = mujoco.MjData(self.model)
-        self.nominal = NominalModel.capture(self.model, self.terrain)
-        sensors = robot.sensor_slices(self.model)
-        joint_range = np.array([self.model.joint(name).range for name in robot.JOINT_NAMES])
-        self.task = ZerithTask(
-            1,
-            self.scenario,
-            self.terrain,
-            sensors,
-            joint_range,
-            resolve_reward_weights(reward_weights),
-            command,
-        )
-        self._force_bodies = np.array(
-            [self.model.body(b).id for b in FORCE_TARGETS[self.scenario.force.target]]
-        )
-        self._segments: list[tuple[int, int]] = [(0, robot.DECIMATION)]
+        self.robots = ZerithBatch(1, scenario, command, reward_weights, terrain_seed)
+        self.scenario, self.terrain, self.task = self.robots.scenario, self.robots.terrain, self.robots.task
+        sim = self.robots.sim
+        self.model, self.data, self.nominal = sim.models[0], sim.datas[0], sim.nominal
         self._needs_reset = True
-
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(robot.NUM_JOINTS,), dtype=np.float32)
-        policy_space = spaces.Box(-np.inf, np.inf, shape=(POLICY_SIZE,), dtype=np.float32)
-        if obs_mode == "policy":
-            self.observation_space = policy_space
-        else:
-            critic_space = spaces.Box(-np.inf, np.inf, shape=(CRITIC_SIZE,), dtype=np.float32)
-            self.observation_space = spaces.Dict({"policy": policy_space, "critic": critic_space})
-
         self.width, self.height = width, height
         self._renderer = None
 
     # ------------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - set(RESET_OPTIONS)
-        if unknown:
-            raise ValueError(
-                f"unknown reset option(s) {sorted(unknown)}; valid options: {', '.join(RESET_OPTIONS)}"
-            )
-        task = self.task
-        task.rngs[0] = self.np_random
-        domain, qpos = task.reset(np.array([0]))
-        if "command" in options:
-            task.set_command(np.array([0]), _check_command(options["command"], "options['command']"))
-        apply_domain(self.model, self.nominal, domain)
-        reset_state(self.model, self.data, qpos[0], self.terrain, self.nominal.foot_geoms)
-        lags = task.lags[0].tolist()
-        self._segments = [(lag, lags.count(lag)) for lag in sorted(set(lags), reverse=True)]
-        policy, critic = task.observe(np.array([0]), self.data.sensordata[None])
+        command = reset_command(options)
+        self.task.rngs[0] = self.np_random
+        policy, critic = self.robots.reset(_ROBOT, None if command is None else {0: command})
         self._needs_reset = False
-        info = {"command": task.command[0].copy()}
-        return self._format(policy[0], critic[0]), info
+        return self._format(policy[0], critic[0]), {"command": self.task.command[0].copy()}
 
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("Zerith1Env.step() called before reset() or after the episode ended")
-        action = np.asarray(action, dtype=np.float64)
-        if action.shape != (robot.NUM_JOINTS,):
-            raise ValueError(f"action must have shape ({robot.NUM_JOINTS},), got {action.shape}")
-        if not np.isfinite(action).all():
-            raise ValueError(f"action contains NaN or infinite values: {action}")
-        np.clip(action, -1.0, 1.0, out=action)
-
-        model, data, task = self.model, self.data, self.task
-        targets, force, kicks = task.before_physics(action[None])
-        data.xfrc_applied[self._force_bodies, :3] = force[0]
-        if kicks is not None:
-            data.qvel[:2] += kicks[0]
-        warnings = warning_count(data)
-        for lag, count in self._segments:
-            data.ctrl[:] = targets[0, lag]
-            mujoco.mj_step(model, data, nstep=count)
-        unstable = state_is_bad(data, warnings)
-        out = task.after_physics(data.sensordata[None], np.array([unstable]))
-
+        out, force = self.robots.step(check_actions(action, (robot.NUM_JOINTS,))[None])
+        task = self.task
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
         info = {
             "fall": bool(out.fall[0]),
-            "sim_unstable": unstable,
+            "sim_unstable": bool(out.sim_unstable[0]),
             "lin_vel_error": float(out.lin_vel_error[0]),
             "ang_vel_error": float(out.ang_vel_error[0]),
             "external_force": force[0].copy(),

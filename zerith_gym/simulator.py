@@ -1,0 +1,87 @@
+"""MuJoCo simulation of n Zerith-1 robots: one model and data per robot, stepped one after another.
+
+Each robot has its own `MjModel` copy because domain randomization edits model fields (masses, friction,
+gains) per robot. A control step of robot i is a few `mj_step(model, data, nstep)` calls in C, one per
+run of sub-steps that share a delayed action (usually one call): no Python per physics sub-step.
+The single env is this with n = 1, so single and batched envs share every line of physics code.
+
+(MuJoCo's threaded `mujoco.rollout` was measured against this loop: see docs/performance.md for why the
+loop is used: rollouts restart from a state vector without the solver's warm start, and MuJoCo's
+per-robot bad-state warnings are not visible through them.)
+"""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from zerith_gym import robot
+from zerith_gym.disturbances import FORCE_TARGETS
+from zerith_gym.physics import (
+    NominalModel,
+    apply_domain,
+    build_model,
+    reset_state,
+    state_is_bad,
+    warning_count,
+)
+from zerith_gym.randomization import DomainParams
+from zerith_gym.terrain import Terrain
+
+Segments = list[tuple[int, int]]
+"""Runs of physics sub-steps applying the same action: (lag in control steps, number of sub-steps)."""
+
+
+def lag_segments(lags: np.ndarray) -> Segments:
+    """Group one robot's per-sub-step lags (decimation,) into runs, oldest action first.
+
+    Lags never increase within a control step (a later sub-step never applies an older action), so
+    each lag forms one contiguous run.
+    """
+    values = lags.tolist()
+    return [(lag, values.count(lag)) for lag in sorted(set(values), reverse=True)]
+
+
+class Simulator:
+    """The physics of `num_robots` robots on one terrain, with forces on the bodies of `force_target`."""
+
+    def __init__(self, num_robots: int, terrain: Terrain, force_target: str) -> None:
+        model = build_model(terrain)
+        self.terrain = terrain
+        self.models = [model] + [copy.copy(model) for _ in range(num_robots - 1)]
+        self.datas = [mujoco.MjData(m) for m in self.models]
+        self.nominal = NominalModel.capture(model, terrain)
+        self.force_bodies = np.array([model.body(name).id for name in FORCE_TARGETS[force_target]])
+        self.sensordata = np.zeros((num_robots, model.nsensordata))
+        """Every robot's sensor readings after the last reset or step, (num_robots, nsensordata)."""
+        self._segments: list[Segments] = [[(0, robot.DECIMATION)]] * num_robots
+
+    def reset(self, ids: np.ndarray, domain: DomainParams, qpos: np.ndarray, lags: np.ndarray) -> None:
+        """Restart robots `ids` with their domain parameters, initial positions and lags (row k: ids[k])."""
+        for k, i in enumerate(ids.tolist()):
+            model, data = self.models[i], self.datas[i]
+            apply_domain(model, self.nominal, domain.row(k))
+            reset_state(model, data, qpos[k], self.terrain, self.nominal.foot_geoms)
+            self._segments[i] = lag_segments(lags[k])
+            self.sensordata[i] = data.sensordata
+
+    def step(self, targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None) -> np.ndarray:
+        """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.
+
+        `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each target body;
+        `kicks` (n, 2): horizontal velocity added to the base, or None.
+        """
+        bodies, unstable = self.force_bodies, np.zeros(len(self.models), dtype=bool)
+        for i, (model, data) in enumerate(zip(self.models, self.datas, strict=True)):
+            data.xfrc_applied[bodies, :3] = force[i]
+            if kicks is not None:
+                data.qvel[:2] += kicks[i]
+            warnings = warning_count(data)
+            for lag, count in self._segments[i]:
+                data.ctrl[:] = targets[i, lag]
+                mujoco.mj_step(model, data, nstep=count)
+            unstable[i] = state_is_bad(data, warnings)
+            self.sensordata[i] = data.sensordata
+        return unstable
