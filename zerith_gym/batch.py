@@ -18,7 +18,7 @@ from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario, get_scenario
 from zerith_gym.simulator import Simulator
-from zerith_gym.task import StepOutput, ZerithTask
+from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask
 from zerith_gym.terrain import Terrain
 
 OBS_MODES = ("dict", "policy")
@@ -81,9 +81,12 @@ class ZerithBatch:
         command: tuple[float, float, float] | None = None,
         reward_weights: Mapping[str, float] | None = None,
         terrain_seed: int = 0,
+        episode_steps: int = EPISODE_STEPS,
     ) -> None:
         if not isinstance(num_robots, int | np.integer) or num_robots < 1:
             raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
+        if not isinstance(episode_steps, int | np.integer) or episode_steps < 1:
+            raise ValueError(f"episode_steps must be a positive integer, got {episode_steps!r}")
         self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
         if command is not None:
             command = tuple(check_command(command, "command").tolist())
@@ -100,6 +103,7 @@ class ZerithBatch:
             np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
             resolve_reward_weights(reward_weights),
             command,
+            int(episode_steps),
         )
 
     def reset(

@@ -44,7 +44,7 @@ from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import Terrain
 
 EPISODE_STEPS = 1000
-"""Control steps in an episode (20 s): reaching it is a truncation."""
+"""Default control steps in an episode (20 s): reaching them is a truncation."""
 FALL_HEIGHT = 0.45
 """A fall: the pelvis is lower than this (m) above the ground under it ..."""
 FALL_TILT = 0.8
@@ -106,8 +106,10 @@ class ZerithTask:
         joint_range: np.ndarray,
         reward_weights: np.ndarray,
         command: tuple[float, float, float] | None = None,
+        episode_steps: int = EPISODE_STEPS,
     ) -> None:
         n = self.num_robots = num_robots
+        self.episode_steps = episode_steps
         self.scenario = scenario
         self.ranges = scenario.randomization
         self.terrain = terrain
@@ -119,13 +121,13 @@ class ZerithTask:
         self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
         # What is due at each control step of an episode: force draw, force on, command draw, push.
         command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
-        steps = np.arange(EPISODE_STEPS)
+        steps = np.arange(episode_steps)
         self._due = np.column_stack(
             [
-                *schedule_table(scenario.force, EPISODE_STEPS),
+                *schedule_table(scenario.force, episode_steps),
                 (steps > 0) & (steps % command_interval == 0) & (self.fixed_command is None),
                 push_due(
-                    EPISODE_STEPS,
+                    episode_steps,
                     round(self.ranges.push_interval_s / robot.CONTROL_DT),
                     self.ranges.push_velocity,
                 ),
@@ -258,7 +260,7 @@ class ZerithTask:
         reward = terms.sum(axis=1)
         policy, critic = ev.policy, ev.critic
         fall = ((ev.base_height < FALL_HEIGHT) | (ev.up_z < _COS_FALL_TILT)) & ~unstable
-        truncated = ((self.step_count >= EPISODE_STEPS) | unstable) & ~fall
+        truncated = ((self.step_count >= self.episode_steps) | unstable) & ~fall
         if unstable.any():
             policy[unstable] = self.policy_obs[unstable]
             critic[unstable] = self.critic_obs[unstable]

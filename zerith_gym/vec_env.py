@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvO
 from zerith_gym import robot
 from zerith_gym.batch import ACTION_SPACE, ZerithBatch, check_actions, observation_space, reset_command
 from zerith_gym.scenarios import Scenario
+from zerith_gym.task import EPISODE_STEPS
 
 
 class ZerithVecEnv(VecEnv):
@@ -48,9 +49,10 @@ class ZerithVecEnv(VecEnv):
         command: tuple[float, float, float] | None = None,
         reward_weights: Mapping[str, float] | None = None,
         terrain_seed: int = 0,
+        episode_steps: int = EPISODE_STEPS,
     ) -> None:
         space = observation_space(obs_mode)
-        self.robots = ZerithBatch(num_envs, scenario, command, reward_weights, terrain_seed)
+        self.robots = ZerithBatch(num_envs, scenario, command, reward_weights, terrain_seed, episode_steps)
         self.scenario, self.task = self.robots.scenario, self.robots.task
         self.obs_mode = obs_mode
         self.render_mode = None
@@ -161,7 +163,8 @@ class ZerithVecEnv(VecEnv):
 def make_vec_env(n_envs: int, seed: int | None = None, **env_kwargs: Any) -> ZerithVecEnv:
     """A `ZerithVecEnv` of `n_envs` robots; robot i is seeded with `seed + i` at the first reset.
 
-    `env_kwargs` are those of `Zerith1Env` (scenario, obs_mode, command, reward_weights, terrain_seed).
+    `env_kwargs` are those of `Zerith1Env` (scenario, obs_mode, command, reward_weights, terrain_seed,
+    episode_steps).
     """
     env = ZerithVecEnv(n_envs, **env_kwargs)
     if seed is not None:

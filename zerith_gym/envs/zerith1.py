@@ -18,6 +18,7 @@ from zerith_gym.batch import (
     reset_command,
 )
 from zerith_gym.scenarios import SCENARIOS, Scenario
+from zerith_gym.task import EPISODE_STEPS
 
 _ROBOT = np.array([0])
 
@@ -58,6 +59,9 @@ class Zerith1Env(gym.Env):
     - `reward_weights`: overrides of the reward weights.
     - `render_mode`: "human" or "rgb_array" (camera following the robot); `width`, `height`.
     - `terrain_seed`: seed of the uneven terrain's heights (fixed for the env's lifetime).
+    - `episode_steps`: control steps before the time-out truncation (default 1000, 20 s). The env
+      truncates itself (and reports `episode_terms`); beyond 1000 also raise `gym.make`'s
+      `max_episode_steps`.
 
     ## Info (every step)
     `fall`, `sim_unstable`, `lin_vel_error` (|v_xy - v_cmd|), `ang_vel_error` (|yaw rate - cmd|),
@@ -76,6 +80,7 @@ class Zerith1Env(gym.Env):
         width: int = 640,
         height: int = 480,
         terrain_seed: int = 0,
+        episode_steps: int = EPISODE_STEPS,
     ) -> None:
         self.observation_space = observation_space(obs_mode)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -84,7 +89,7 @@ class Zerith1Env(gym.Env):
         self.action_space = ACTION_SPACE
         self.obs_mode = obs_mode
         self.render_mode = render_mode
-        self.robots = ZerithBatch(1, scenario, command, reward_weights, terrain_seed)
+        self.robots = ZerithBatch(1, scenario, command, reward_weights, terrain_seed, episode_steps)
         self.scenario, self.terrain, self.task = self.robots.scenario, self.robots.terrain, self.robots.task
         sim = self.robots.sim
         self.model, self.data, self.nominal = sim.models[0], sim.datas[0], sim.nominal

@@ -1,0 +1,164 @@
+"""ZerithVecEnv: the same transitions as single envs, SB3's VecEnv contract, and training on it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from stable_baselines3 import PPO
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
+
+import zerith_gym
+from zerith_gym import Zerith1Env, ZerithVecEnv
+from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+
+STEP_INFO_KEYS = ("fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command")
+
+
+def _obs_equal(batched, i: int | None, single) -> None:
+    """Robot i's observation in a batched observation (or, with i None, one robot's) equals `single`."""
+    if isinstance(single, dict):
+        assert set(batched) == set(single)
+        for key in single:
+            value = batched[key] if i is None else batched[key][i]
+            np.testing.assert_array_equal(value, single[key], err_msg=key)
+    else:
+        np.testing.assert_array_equal(batched if i is None else batched[i], single)
+
+
+def _compare_with_single_envs(seed: int, steps: int, actions_of, **env_kwargs) -> dict[str, int]:
+    """Step a ZerithVecEnv and single envs seeded seed + i side by side; assert every transition is equal."""
+    num = 3
+    venv = zerith_gym.make_vec_env(num, seed=seed, **env_kwargs)
+    envs = [Zerith1Env(**env_kwargs) for _ in range(num)]
+    obs = venv.reset()
+    for i, env in enumerate(envs):
+        single_obs, single_info = env.reset(seed=seed + i)
+        _obs_equal(obs, i, single_obs)
+        np.testing.assert_array_equal(venv.reset_infos[i]["command"], single_info["command"])
+    counts = {"falls": 0, "time_outs": 0}
+    for t in range(steps):
+        actions = actions_of(t)
+        obs, rewards, dones, infos = venv.step(actions)
+        assert rewards.dtype == np.float32 and dones.dtype == bool
+        for i, env in enumerate(envs):
+            single_obs, reward, terminated, truncated, info = env.step(actions[i])
+            assert rewards[i] == np.float32(reward)
+            assert dones[i] == (terminated or truncated)
+            for key in STEP_INFO_KEYS:
+                np.testing.assert_array_equal(infos[i][key], info[key], err_msg=key)
+            assert infos[i]["TimeLimit.truncated"] == (truncated and not terminated)
+            if terminated or truncated:
+                counts["falls"] += terminated
+                counts["time_outs"] += truncated
+                _obs_equal(infos[i]["terminal_observation"], None, single_obs)
+                assert infos[i]["episode_terms"] == info["episode_terms"]
+                single_obs, reset_info = env.reset()
+                np.testing.assert_array_equal(venv.reset_infos[i]["command"], reset_info["command"])
+            else:
+                assert "terminal_observation" not in infos[i] and "episode" not in infos[i]
+            _obs_equal(obs, i, single_obs)
+    return counts
+
+
+def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs():
+    # Robot 0 holds still and times out after 60 steps; robots 1 and 2 act at random and fall.
+    rng = np.random.default_rng(0)
+
+    def actions_of(t: int) -> np.ndarray:
+        actions = rng.uniform(-1.0, 1.0, size=(3, 12)).astype(np.float32)
+        actions[0] = 0.0
+        return actions
+
+    counts = _compare_with_single_envs(7, 250, actions_of, scenario="train", episode_steps=60)
+    assert counts["falls"] >= 4 and counts["time_outs"] >= 4
+
+
+@pytest.mark.parametrize(
+    "env_kwargs",
+    [
+        dict(scenario="sudden-hands", obs_mode="policy"),
+        dict(scenario="uneven", command=(0.3, 0.0, 0.1)),
+        dict(scenario="load-friction", episode_steps=40),
+    ],
+)
+def test_batched_robots_reproduce_single_envs_in_other_scenarios(env_kwargs):
+    rng = np.random.default_rng(1)
+    counts = _compare_with_single_envs(
+        3, 120, lambda t: rng.uniform(-0.5, 0.5, size=(3, 12)).astype(np.float32), **env_kwargs
+    )
+    assert counts["falls"] + counts["time_outs"] >= 1
+
+
+def test_vec_env_contract_spaces_auto_reset_and_episode_statistics():
+    venv = zerith_gym.make_vec_env(4, seed=0, episode_steps=30)
+    assert isinstance(venv, VecEnv) and venv.num_envs == 4
+    assert venv.observation_space["policy"].shape == (POLICY_SIZE,)
+    assert venv.action_space.shape == (12,)
+    obs = venv.reset()
+    assert obs["policy"].shape == (4, POLICY_SIZE) and obs["policy"].dtype == np.float32
+    assert obs["critic"].shape == (4, CRITIC_SIZE) and obs["critic"].dtype == np.float32
+    returns, ends = np.zeros(4), []
+    rng = np.random.default_rng(0)
+    for _ in range(70):
+        obs, rewards, dones, infos = venv.step(rng.uniform(-1, 1, size=(4, 12)))
+        assert rewards.shape == (4,) and dones.shape == (4,)
+        returns += rewards
+        for i in np.flatnonzero(dones):
+            episode = infos[i]["episode"]
+            assert episode["r"] == pytest.approx(returns[i], abs=1e-4) and 1 <= episode["l"] <= 30
+            assert infos[i]["terminal_observation"]["critic"].shape == (CRITIC_SIZE,)
+            # after the auto-reset, the returned observation starts a new episode: last action is zero
+            assert np.all(obs["policy"][i, 34:46] == 0.0)
+            returns[i] = 0.0
+            ends.append(episode["l"])
+    assert 30 in ends  # time-outs at exactly episode_steps
+    assert venv.env_is_wrapped(Monitor) == [True] * 4
+    assert venv.env_is_wrapped(VecMonitor) == [False] * 4
+
+
+def test_seeding_options_attributes_and_bad_input():
+    venv = ZerithVecEnv(2, scenario="nominal", obs_mode="policy")
+    assert venv.seed(5) == [5, 6]
+    first = venv.reset()
+    venv.seed(5)
+    np.testing.assert_array_equal(venv.reset(), first)
+    venv.set_options({"command": (0.4, 0.0, 0.0)})
+    venv.reset()
+    np.testing.assert_array_equal(venv.get_attr("task")[0].command, [[0.4, 0.0, 0.0]] * 2)
+    assert venv.get_attr("obs_mode") == ["policy", "policy"]
+    assert venv.get_attr("obs_mode", indices=[1]) == ["policy"]
+    venv.set_attr("render_mode", None)
+    with pytest.raises(ValueError, match="shared by all robots"):
+        venv.set_attr("obs_mode", "dict", indices=[0])
+    with pytest.raises(ValueError, match="action must have shape"):
+        venv.step(np.zeros((3, 12)))
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        venv.step(np.full((2, 12), np.nan))
+    venv.set_options({"speed": 1.0})
+    with pytest.raises(ValueError, match="valid options: command"):
+        venv.reset()
+    with pytest.raises(ValueError, match="valid scenarios"):
+        ZerithVecEnv(2, scenario="moon")
+    with pytest.raises(ValueError, match="valid values: dict, policy"):
+        ZerithVecEnv(2, obs_mode="image")
+    with pytest.raises(ValueError, match="positive integer"):
+        ZerithVecEnv(0)
+    with pytest.raises(ValueError, match="episode_steps"):
+        ZerithVecEnv(2, episode_steps=0)
+
+
+def test_ppo_with_vec_normalize_and_huri_learn_on_the_batched_env():
+    from sb3_huri import HuRiPPO
+
+    env = VecNormalize(zerith_gym.make_vec_env(4, seed=0, obs_mode="policy", episode_steps=20))
+    small = dict(n_steps=16, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[32]))
+    ppo = PPO("MlpPolicy", env, batch_size=32, **small)
+    ppo.learn(128)
+    assert ppo.num_timesteps == 128 and len(ppo.ep_info_buffer) > 0  # episode statistics reached SB3's logger
+
+    env = zerith_gym.make_vec_env(4, seed=0, episode_steps=20)
+    huri = HuRiPPO("MlpPolicy", env, **small)
+    huri.learn(128)
+    assert huri.num_timesteps == 128 and huri.rollout_buffer.has_time_outs
+    assert len(huri.ep_info_buffer) > 0 and np.isfinite(huri.rollout_buffer.advantages).all()
