@@ -1,66 +1,168 @@
-"""Single-env speed of Zerith1-v0 against raw MuJoCo physics on the same model, in the same run.
+"""Speed of Zerith1-v0, single and batched, against raw MuJoCo physics of the same models in the same run.
 
-Prints control steps per second of (a) `mj_step(model, data, nstep=decimation)` in a Python loop with
-fixed controls (the physics limit of one env), (b) the unwrapped env's `step` and (c) the env from
-`gym.make` (with gymnasium's wrappers), random actions, resetting at episode ends, and the ratios.
+For each configuration it prints control steps per second (robot-steps/s for a batch) of
 
-    python benchmarks/bench_env.py [--steps 20000] [--scenario train]
+- raw physics: `mj_step(model, data, nstep=decimation)` on the env's own (randomized) models, with the
+  same uniform random actions as the env run turned into joint targets, and a robot put back to its
+  reset state when its pelvis drops below the fall height, so the physics does what it does in the env;
+- the env: `Zerith1Env.step` (unwrapped and from `gym.make`) or `ZerithVecEnv.step` with those actions,
+  resets included;
+
+and the ratio env / raw physics. With `--rollout`, it also times raw physics through MuJoCo's threaded
+`mujoco.rollout` (the alternative to the loop; not used by the env, see docs/performance.md).
+
+    python benchmarks/bench_env.py                          # single env, and batches of 16 and 64
+    python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import mujoco
 import numpy as np
+from mujoco import rollout
 
 import zerith_gym
 from zerith_gym import robot
+from zerith_gym.simulator import Simulator
+from zerith_gym.task import FALL_HEIGHT
 
 
-def physics_rate(env: zerith_gym.Zerith1Env, steps: int) -> float:
-    """Control steps/s of raw physics on the env's own model, from the env's reset state."""
-    model, data = env.model, env.data
-    env.reset(seed=1)
-    data.ctrl[:] = robot.DEFAULT_JOINT_POS
-    start = time.perf_counter()
-    for _ in range(steps):
-        mujoco.mj_step(model, data, nstep=robot.DECIMATION)
-    return steps / (time.perf_counter() - start)
-
-
-def env_rate(env: gym.Env, steps: int, seed: int = 0) -> float:
-    """Control steps/s of `env.step` with uniform random actions (drawn beforehand), resets included."""
+def random_actions(steps: int, num_robots: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    actions = rng.uniform(-1.0, 1.0, size=(steps, robot.NUM_JOINTS)).astype(np.float32)
-    env.reset(seed=seed)
+    return rng.uniform(-1.0, 1.0, size=(steps, num_robots, robot.NUM_JOINTS)).astype(np.float32)
+
+
+def physics_rate(sim: Simulator, actions: np.ndarray) -> float:
+    """Robot-steps/s of raw `mj_step(nstep=decimation)` over the simulator's robots, from their state."""
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    pairs = list(zip(sim.models, sim.datas, strict=True))
+    starts = []
+    for model, data in pairs:
+        state = np.empty(mujoco.mj_stateSize(model, spec))
+        mujoco.mj_getState(model, data, state, spec)
+        starts.append(state)
+    targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions.astype(np.float64)
+    start = time.perf_counter()
+    for step_targets in targets:
+        for (model, data), target, state in zip(pairs, step_targets, starts, strict=True):
+            data.ctrl[:] = target
+            mujoco.mj_step(model, data, nstep=robot.DECIMATION)
+            if data.qpos[2] < FALL_HEIGHT:
+                mujoco.mj_setState(model, data, state, spec)
+    return targets.shape[0] * targets.shape[1] / (time.perf_counter() - start)
+
+
+def rollout_rate(sim: Simulator, actions: np.ndarray, nthread: int) -> float:
+    """Robot-steps/s of raw physics through `mujoco.rollout`: one call per control step, state carried."""
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    model = sim.models[0]
+    states = np.empty((len(sim.models), mujoco.mj_stateSize(model, spec)))
+    for i, (m, d) in enumerate(zip(sim.models, sim.datas, strict=True)):
+        mujoco.mj_getState(m, d, states[i], spec)
+    starts = states.copy()
+    targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions.astype(np.float64)
+    out_state = np.empty((len(sim.models), robot.DECIMATION, states.shape[1]))
+    out_sensor = np.empty((len(sim.models), robot.DECIMATION, model.nsensordata))
+    datas = [mujoco.MjData(model) for _ in range(max(nthread, 1))]
+    qpos_z = 1 + 2  # time, then qpos: the base height
+    with rollout.Rollout(nthread=nthread) as pool:
+        start = time.perf_counter()
+        for step_targets in targets:
+            control = np.repeat(step_targets[:, None], robot.DECIMATION, axis=1)
+            pool.rollout(sim.models, datas, states, control, state=out_state, sensordata=out_sensor)
+            states[:] = out_state[:, -1]
+            fallen = states[:, qpos_z] < FALL_HEIGHT
+            states[fallen] = starts[fallen]
+        return targets.shape[0] * targets.shape[1] / (time.perf_counter() - start)
+
+
+def single_env_rate(env: gym.Env, actions: np.ndarray) -> float:
+    """Control steps/s of `env.step` with the given actions, resetting at episode ends."""
     start = time.perf_counter()
     for action in actions:
         _, _, terminated, truncated, _ = env.step(action)
         if terminated or truncated:
             env.reset()
-    return steps / (time.perf_counter() - start)
+    return len(actions) / (time.perf_counter() - start)
+
+
+def vec_env_rate(env: zerith_gym.ZerithVecEnv, actions: np.ndarray) -> float:
+    """Robot-steps/s of `VecEnv.step` with the given actions (automatic resets)."""
+    start = time.perf_counter()
+    for step_actions in actions:
+        env.step(step_actions)
+    return actions.shape[0] * actions.shape[1] / (time.perf_counter() - start)
+
+
+def interleaved(measures: dict[str, Callable[[np.ndarray], float]], actions: np.ndarray, rounds: int) -> dict:
+    """Median rate of each measure over `rounds` rounds, the measures taking turns within a round.
+
+    The machine is shared: taking turns exposes every measure to the same load, and the median of the
+    per-round ratios to the first measure (raw physics) is the figure that varies least between runs.
+    """
+    chunks = np.array_split(actions, rounds)
+    rates = {name: [] for name in measures}
+    for chunk in chunks:
+        for name, measure in measures.items():
+            rates[name].append(measure(chunk))
+    reference = np.array(rates[next(iter(measures))])
+    return {
+        name: (float(np.median(values)), float(np.median(np.array(values) / reference)))
+        for name, values in rates.items()
+    }
+
+
+def report(title: str, results: dict) -> None:
+    print(f"{title:36s} steps/s   ratio to raw physics (median of rounds)")
+    for name, (rate, ratio) in results.items():
+        print(f"  {name:34s} {rate:9.0f}   {ratio:.2f}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=20000)
+    parser.add_argument("--steps", type=int, default=10000, help="control steps of the single env")
+    parser.add_argument("--num-envs", type=int, nargs="*", default=[16, 64], help="batch sizes")
+    parser.add_argument("--batch-steps", type=int, default=40000, help="robot-steps per batch size")
+    parser.add_argument("--rounds", type=int, default=10, help="rounds of turns between the measures")
     parser.add_argument("--scenario", default="train")
+    parser.add_argument("--rollout", action="store_true", help="also time raw physics via mujoco.rollout")
     args = parser.parse_args()
-
-    wrapped = gym.make("Zerith1-v0", scenario=args.scenario)
-    env = wrapped.unwrapped
-    physics_rate(env, 1000)  # warm-up
-    env_rate(wrapped, 1000)
-    physics = physics_rate(env, args.steps)
-    bare = env_rate(env, args.steps)
-    made = env_rate(wrapped, args.steps)
     print(f"scenario {args.scenario}, physics dt {robot.PHYSICS_DT} s x {robot.DECIMATION} per control step")
-    print(f"raw mj_step(nstep={robot.DECIMATION}):  {physics:9.0f} control steps/s")
-    print(f"Zerith1Env.step (unwrapped):  {bare:9.0f} steps/s   ratio {bare / physics:.2f}")
-    print(f"gym.make env.step (wrapped):  {made:9.0f} steps/s   ratio {made / physics:.2f}")
+
+    if args.steps > 0:
+        wrapped = gym.make("Zerith1-v0", scenario=args.scenario)
+        env = wrapped.unwrapped
+        actions = random_actions(args.steps, 1)[:, 0]
+        wrapped.reset(seed=0)
+        single_env_rate(wrapped, actions[:500])  # warm-up
+        measures = {
+            f"raw mj_step(nstep={robot.DECIMATION})": lambda a: physics_rate(env.robots.sim, a[:, None]),
+            "Zerith1Env.step (unwrapped)": lambda a: single_env_rate(env, a),
+            "gym.make env.step (wrapped)": lambda a: single_env_rate(wrapped, a),
+        }
+        wrapped.reset(seed=0)
+        report("single env", interleaved(measures, actions, args.rounds))
+
+    for num in args.num_envs:
+        venv = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario)
+        venv.reset()
+        actions = random_actions(max(args.batch_steps // num, args.rounds), num)
+        vec_env_rate(venv, actions[:10])  # warm-up
+        measures = {
+            "raw mj_step loop": lambda a, v=venv: physics_rate(v.robots.sim, a),
+            "ZerithVecEnv.step": lambda a, v=venv: vec_env_rate(v, a),
+        }
+        if args.rollout:
+            for nthread in (0, 2):
+                measures[f"raw mujoco.rollout nthread={nthread}"] = lambda a, v=venv, k=nthread: rollout_rate(
+                    v.robots.sim, a, k
+                )
+        report(f"batch of {num} (robot-steps/s)", interleaved(measures, actions, args.rounds))
 
 
 if __name__ == "__main__":

@@ -163,6 +163,7 @@ def test_joint_acceleration_penalty_uses_consecutive_joint_velocities():
         assert reward == pytest.approx(0.02 * np.sum(acceleration**2), rel=1e-3)
         assert reward > 0.0
 
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [

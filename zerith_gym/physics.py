@@ -14,10 +14,9 @@ from zerith_gym import robot
 from zerith_gym.randomization import NUM_LINKS, DomainParams
 from zerith_gym.terrain import Terrain
 
-_BAD_STATE_WARNINGS = np.array(
-    [mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC],
-    dtype=int,
-)
+BAD_STATE_WARNINGS = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
+if BAD_STATE_WARNINGS.stop - BAD_STATE_WARNINGS.start != 3:
+    raise RuntimeError("MuJoCo's bad qpos, qvel and qacc warnings are expected to be contiguous")
 GROUND_CLEARANCE = 0.002
 """Gap (m) left between the lowest foot corner and the ground when the robot is placed at reset."""
 
@@ -107,13 +106,3 @@ def reset_state(
         lowest = min(lowest, float(np.min(points[:, 2] - terrain.height_at(points[:, :2]))))
     data.qpos[2] = qpos[2] - lowest + GROUND_CLEARANCE
     mujoco.mj_forward(model, data)
-
-
-def warning_count(data: mujoco.MjData) -> int:
-    """How many bad-state warnings (NaN/huge qpos, qvel, qacc) MuJoCo has raised on `data`."""
-    return int(data.warning.number[_BAD_STATE_WARNINGS].sum())
-
-
-def state_is_bad(data: mujoco.MjData, warnings_before: int) -> bool:
-    """True if the last steps raised a bad-state warning (MuJoCo then resets the state) or left NaNs."""
-    return warning_count(data) != warnings_before or not np.isfinite(data.qvel).all()

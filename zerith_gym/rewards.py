@@ -137,30 +137,66 @@ def reward_terms(
     )
     sums = np.add.reduceat(errors * errors, _STARTS, axis=1)
     exps = np.exp(sums[:, :9] * _EXP_COEF)
+    # Per-foot values weighted by the gait schedule (swing = 1 - C_foot) or the contacts, summed over feet.
     swing = 1.0 - stance
+    per_foot = np.add.reduceat(
+        np.concatenate([swing, stance, swing, foot_contact], axis=1)
+        * np.concatenate([exps[:, 2:6], sums[:, 10:12], sums[:, 4:6]], axis=1),
+        _FOOT_PAIRS,
+        axis=1,
+    )
+    tilt = np.arccos(np.minimum(np.maximum(foot_up_z, -1.0), 1.0))
     normal = foot_force[:, _NORMAL]
-    terms = np.empty((n, len(REWARD_NAMES)))
-    terms[:, 0] = 1.0  # alive
-    terms[:, 1:3] = exps[:, 0:2]  # velocity tracking
-    terms[:, 3] = (swing * exps[:, 2:4]).sum(axis=1)  # swing force
-    terms[:, 4] = (stance * exps[:, 4:6]).sum(axis=1)  # stance velocity
-    terms[:, 5] = sums[:, 9]  # raibert placement
-    terms[:, 6] = (swing * sums[:, 10:12]).sum(axis=1)  # swing height
-    terms[:, 7] = exps[:, 6]  # body height
-    terms[:, 8] = sums[:, 20]  # z velocity
-    terms[:, 9] = (foot_contact * sums[:, 4:6]).sum(axis=1)  # foot slip
-    terms[:, 10] = exps[:, 7]  # hip position
-    terms[:, 11] = np.exp(
-        -10.0 * np.arccos(np.minimum(np.maximum(foot_up_z, -1.0), 1.0)).sum(axis=1)
-    )  # feet orientation
-    terms[:, 12] = (sums[:, 12:14] > 16.0 * normal * normal).any(axis=1)  # stumble: |F_xy| > 4 |F_z|
-    terms[:, 13] = exps[:, 8]  # orientation
-    terms[:, 14] = leg_collision
-    terms[:, 15] = outside_limits
-    terms[:, 16:22] = sums[:, 14:20]  # torques ... action smoothing, 2nd order
-    terms[:, 19] = np.sqrt(terms[:, 19])  # action rate: |a_t|
-    return terms
+    stumble = np.logical_or.reduce(sums[:, 12:14] > 16.0 * normal * normal, axis=1)  # |F_xy| > 4 |F_z|
+    pool = np.concatenate(
+        [
+            exps,
+            sums,
+            per_foot,
+            np.exp(-10.0 * np.add.reduce(tilt, axis=1))[:, None],
+            stumble[:, None],
+            leg_collision[:, None],
+            outside_limits[:, None],
+            np.ones((n, 1)),
+            np.sqrt(sums[:, _ACTION : _ACTION + 1]),
+        ],
+        axis=1,
+    )
+    return pool[:, _TERM_COLUMNS]
 
 
+# Where each term is in the pool above: "exp:" is exp(coefficient * squared norm) of a group, "sum:" the
+# squared norm itself.
+_POOL = (
+    *(f"exp:{name}" for name, _ in _GROUPS[:9]),
+    *(f"sum:{name}" for name, _ in _GROUPS),
+    "swing_force",
+    "stance_velocity",
+    "swing_height",
+    "foot_slip",
+    "feet_orientation",
+    "feet_stumble",
+    "leg_collision",
+    "joint_limit",
+    "alive",
+    "action_rate",
+)
+_TERM_SOURCE = {
+    "lin_vel_tracking": "exp:lin_vel_error",
+    "yaw_vel_tracking": "exp:yaw_rate_error",
+    "raibert_placement": "sum:raibert_error",
+    "body_height": "exp:height_error",
+    "z_velocity": "sum:vertical_speed",
+    "hip_position": "exp:hip_roll_yaw",
+    "orientation": "exp:base_tilt",
+    "torques": "sum:torques",
+    "joint_velocities": "sum:joint_velocities",
+    "joint_accelerations": "sum:joint_accelerations",
+    "action_smoothing": "sum:action_step",
+    "action_smoothing_2": "sum:action_step_2",
+}
+_TERM_COLUMNS = np.array([_POOL.index(_TERM_SOURCE.get(name, name)) for name in REWARD_NAMES])
+_ACTION = [name for name, _ in _GROUPS].index("action")
+_FOOT_PAIRS = np.array([0, 2, 4, 6])
 _TANGENTIAL = np.array([0, 1, 3, 4])
 _NORMAL = np.array([2, 5])

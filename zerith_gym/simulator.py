@@ -13,20 +13,14 @@ per-robot bad-state warnings are not visible through them.)
 from __future__ import annotations
 
 import copy
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from zerith_gym import robot
 from zerith_gym.disturbances import FORCE_TARGETS
-from zerith_gym.physics import (
-    NominalModel,
-    apply_domain,
-    build_model,
-    reset_state,
-    state_is_bad,
-    warning_count,
-)
+from zerith_gym.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_state
 from zerith_gym.randomization import DomainParams
 from zerith_gym.terrain import Terrain
 
@@ -44,6 +38,31 @@ def lag_segments(lags: np.ndarray) -> Segments:
     return [(lag, values.count(lag)) for lag in sorted(set(values), reverse=True)]
 
 
+class _Robot(NamedTuple):
+    """One robot's model and data, and persistent views of the data fields touched every step."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    ctrl: np.ndarray
+    qvel: np.ndarray
+    sensordata: np.ndarray
+    bad_state_warnings: np.ndarray
+    force_rows: list[np.ndarray]  # xfrc_applied[body, :3] of each body the external force acts on
+
+    @staticmethod
+    def of(model: mujoco.MjModel, force_bodies: list[int]) -> _Robot:
+        data = mujoco.MjData(model)
+        return _Robot(
+            model,
+            data,
+            data.ctrl,
+            data.qvel,
+            data.sensordata,
+            data.warning.number[BAD_STATE_WARNINGS],
+            [data.xfrc_applied[body, :3] for body in force_bodies],
+        )
+
+
 class Simulator:
     """The physics of `num_robots` robots on one terrain, with forces on the bodies of `force_target`."""
 
@@ -51,11 +70,13 @@ class Simulator:
         model = build_model(terrain)
         self.terrain = terrain
         self.models = [model] + [copy.copy(model) for _ in range(num_robots - 1)]
-        self.datas = [mujoco.MjData(m) for m in self.models]
+        bodies = [model.body(name).id for name in FORCE_TARGETS[force_target]]
+        self._robots = [_Robot.of(m, bodies) for m in self.models]
+        self.datas = [robot_.data for robot_ in self._robots]
         self.nominal = NominalModel.capture(model, terrain)
-        self.force_bodies = np.array([model.body(name).id for name in FORCE_TARGETS[force_target]])
         self.sensordata = np.zeros((num_robots, model.nsensordata))
         """Every robot's sensor readings after the last reset or step, (num_robots, nsensordata)."""
+        self._qvel = np.zeros((num_robots, model.nv))
         self._segments: list[Segments] = [[(0, robot.DECIMATION)]] * num_robots
 
     def reset(self, ids: np.ndarray, domain: DomainParams, qpos: np.ndarray, lags: np.ndarray) -> None:
@@ -71,17 +92,21 @@ class Simulator:
         """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.
 
         `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each target body;
-        `kicks` (n, 2): horizontal velocity added to the base, or None.
+        `kicks` (n, 2): horizontal velocity added to the base, or None. A simulation is unstable if
+        MuJoCo raised a bad-state warning during the step (it then resets the state) or if it ends with
+        non-finite velocities.
         """
-        bodies, unstable = self.force_bodies, np.zeros(len(self.models), dtype=bool)
-        for i, (model, data) in enumerate(zip(self.models, self.datas, strict=True)):
-            data.xfrc_applied[bodies, :3] = force[i]
+        qvel, sensordata, warned = self._qvel, self.sensordata, []
+        for i, sim in enumerate(self._robots):
+            for row in sim.force_rows:
+                row[:] = force[i]
             if kicks is not None:
-                data.qvel[:2] += kicks[i]
-            warnings = warning_count(data)
+                sim.qvel[:2] += kicks[i]
+            warnings = sum(sim.bad_state_warnings.tolist())
             for lag, count in self._segments[i]:
-                data.ctrl[:] = targets[i, lag]
-                mujoco.mj_step(model, data, nstep=count)
-            unstable[i] = state_is_bad(data, warnings)
-            self.sensordata[i] = data.sensordata
-        return unstable
+                sim.ctrl[:] = targets[i, lag]
+                mujoco.mj_step(sim.model, sim.data, nstep=count)
+            warned.append(sum(sim.bad_state_warnings.tolist()) != warnings)
+            qvel[i] = sim.qvel
+            sensordata[i] = sim.sensordata
+        return np.array(warned) | ~np.isfinite(qvel).all(axis=1)

@@ -119,6 +119,7 @@ class ZerithTask:
         self.soft_low = centre - JOINT_SOFT_LIMIT * half
         self.soft_high = centre + JOINT_SOFT_LIMIT * half
         self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
+        self._noisy = bool(self.noise_scale.any())
         # What is due at each control step of an episode: force draw, force on, command draw, push.
         command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
         steps = np.arange(episode_steps)
@@ -234,17 +235,18 @@ class ZerithTask:
         self.actions[:, 1:] = self.actions[:, :-1]
         self.actions[:, 0] = actions
         targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * self.actions
-        for i, rng in enumerate(self.rngs):
-            self._uniforms[i] = rng.random(STEP_DRAWS)
         u = self._uniforms
+        for rng, row in zip(self.rngs, u, strict=True):
+            rng.random(out=row)
         due = self._due[self.step_count]
+        _, _, command_due, push_due = np.logical_or.reduce(due, axis=0).tolist()
         self.force = update_forces(
             due[:, 0], due[:, 1], u[:, _FORCE], self.force, self.scenario.force.magnitude
         )
-        if due[:, 2].any():
+        if command_due:
             self.command[due[:, 2]] = sample_commands(u[due[:, 2], _COMMAND], self.scenario.command_ranges)
         kicks = None
-        if due[:, 3].any():
+        if push_due:
             kicks = horizontal_vectors(u[:, _PUSH], self.ranges.push_velocity)[:, :2] * due[:, 3:4]
         return targets, self.force, kicks
 
@@ -252,16 +254,17 @@ class ZerithTask:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
         self.step_count += 1
         self.gait_step = (self.gait_step + 1) % len(self.gait_table)
-        if unstable.any():
+        any_unstable = bool(np.logical_or.reduce(unstable))
+        if any_unstable:
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         ev = self._evaluate(slice(None), sensordata, with_rewards=True)
         self.joint_vel[:] = ev.qvel  # a copy: `ev.qvel` may view the simulator's sensordata
         terms = ev.terms
-        reward = terms.sum(axis=1)
+        reward = np.add.reduce(terms, axis=1)
         policy, critic = ev.policy, ev.critic
         fall = ((ev.base_height < FALL_HEIGHT) | (ev.up_z < _COS_FALL_TILT)) & ~unstable
         truncated = ((self.step_count >= self.episode_steps) | unstable) & ~fall
-        if unstable.any():
+        if any_unstable:
             policy[unstable] = self.policy_obs[unstable]
             critic[unstable] = self.critic_obs[unstable]
             terms[unstable] = 0.0
@@ -339,7 +342,7 @@ class ZerithTask:
                 joint_vel=qvel,
                 joint_acc=(qvel - self.joint_vel[sel]) * (1.0 / robot.CONTROL_DT),
                 torques=s[:, self._s_torque],
-                outside_limits=((qpos < self.soft_low) | (qpos > self.soft_high)).any(axis=1),
+                outside_limits=np.logical_or.reduce((qpos < self.soft_low) | (qpos > self.soft_high), axis=1),
                 hip_roll_yaw=joint_offset[:, self._hip_roll_yaw],
                 foot_up_z=s[:, self._s_foot_up][:, self._z_of_two],
                 foot_speed_xy=s[:, self._s_foot_vel][:, self._xy_of_two],
@@ -383,7 +386,7 @@ class ZerithTask:
             axis=1,
             dtype=np.float32,
         )
-        if self.noise_scale.any():
+        if self._noisy:
             policy += (2.0 * self._uniforms[sel, _NOISE] - 1.0) * self.noise_scale
         velocity_error = linvel[:, :2] - command[:, :2]
         return _Evaluation(
