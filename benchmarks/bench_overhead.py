@@ -2,7 +2,8 @@
 
 Both algorithms use the paper's asymmetric [512, 256, 128] networks (PPO through ``HuRiPolicy`` with a
 scalar critic), the same ``n_steps``, ``n_envs``, minibatch size and epochs. Runs alternate between the
-algorithms so that machine load affects both alike; the ratio of median wall times is reported.
+algorithms so that machine load affects both alike; the ratios of median wall times and of median CPU
+times of this process (less sensitive to other processes on a shared machine) are reported.
 
     python benchmarks/bench_overhead.py                       # Pendulum-v1, and Zerith1-v0 if installed
     python benchmarks/bench_overhead.py --envs Pendulum-v1 --timesteps 8192 --repeats 3
@@ -26,7 +27,7 @@ def _make_env(env_id: str, n_envs: int, seed: int):
     return make_vec_env(env_id, n_envs=n_envs, seed=seed)
 
 
-def _time_learn(algo: str, env_id: str, args: argparse.Namespace, seed: int) -> float:
+def _time_learn(algo: str, env_id: str, args: argparse.Namespace, seed: int) -> tuple[float, float]:
     env = _make_env(env_id, args.n_envs, seed)
     common = dict(
         n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs, seed=seed, device="cpu"
@@ -35,11 +36,11 @@ def _time_learn(algo: str, env_id: str, args: argparse.Namespace, seed: int) -> 
         model = PPO(HuRiPolicy, env, policy_kwargs=dict(n_quantiles=1), ent_coef=0.01, vf_coef=1.0, **common)
     else:
         model = HuRiPPO("MlpPolicy", env, variant=algo, **common)
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     model.learn(args.timesteps)
-    elapsed = time.perf_counter() - start
+    elapsed, elapsed_cpu = time.perf_counter() - start, time.process_time() - start_cpu
     env.close()
-    return elapsed
+    return elapsed, elapsed_cpu
 
 
 def main() -> None:
@@ -62,24 +63,29 @@ def main() -> None:
         f"torch threads={args.threads} n_envs={args.n_envs} n_steps={args.n_steps} batch={args.batch_size} "
         f"epochs={args.n_epochs} timesteps={args.timesteps} repeats={args.repeats}"
     )
-    print("| env | algorithm | median wall time (s) | ratio to PPO |")
-    print("|---|---|---|---|")
+    print(
+        "| env | algorithm | wall time (s) | wall-time ratio to PPO | CPU time (s) | CPU-time ratio to PPO |"
+    )
+    print("|---|---|---|---|---|---|")
     for env_id in args.envs:
         try:
             _make_env(env_id, 1, 0).close()
         except (gym.error.Error, ImportError) as error:
-            print(f"| {env_id} | skipped: {error} | | |")
+            print(f"| {env_id} | skipped: {error} | | | | |")
             continue
         algos = ["ppo", *args.variants]
-        times: dict[str, list[float]] = {algo: [] for algo in algos}
+        times: dict[str, list[tuple[float, float]]] = {algo: [] for algo in algos}
         for repeat in range(args.repeats):
             for algo in algos:
                 times[algo].append(_time_learn(algo, env_id, args, seed=repeat))
-        reference = statistics.median(times["ppo"])
+        wall_ppo = statistics.median(wall for wall, _ in times["ppo"])
+        cpu_ppo = statistics.median(cpu for _, cpu in times["ppo"])
         for algo in algos:
-            median = statistics.median(times[algo])
+            wall = statistics.median(wall for wall, _ in times[algo])
+            cpu = statistics.median(cpu for _, cpu in times[algo])
             name = "SB3 PPO + HuRiPolicy(n_quantiles=1)" if algo == "ppo" else f"HuRiPPO variant={algo}"
-            print(f"| {env_id} | {name} | {median:.2f} | {median / reference:.2f}x |", flush=True)
+            ratios = f"{wall:.2f} | {wall / wall_ppo:.2f}x | {cpu:.2f} | {cpu / cpu_ppo:.2f}x"
+            print(f"| {env_id} | {name} | {ratios} |", flush=True)
 
 
 if __name__ == "__main__":
