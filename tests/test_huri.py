@@ -180,7 +180,8 @@ def test_risk_and_loss_keys_are_logged():
 
 
 def test_progress_bar_and_tensorboard(tmp_path):
-    pytest.importorskip("tensorboard")
+    for module in ("tensorboard", "tqdm", "rich"):
+        pytest.importorskip(module)
     model = HuRiPPO("MlpPolicy", "Pendulum-v1", tensorboard_log=str(tmp_path), **SMALL)
     model.learn(64, progress_bar=True)
     assert list(tmp_path.glob("HuRiPPO_1/events.out.tfevents.*"))
