@@ -12,7 +12,7 @@ and the ratio env / raw physics. With `--rollout`, it also times raw physics thr
 `mujoco.rollout` (the alternative to the loop; not used by the env, see docs/performance.md).
 
     python benchmarks/bench_env.py                          # single env, and batches of 16 and 64
-    python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout
+    python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout --action-scale 0.2
 """
 
 from __future__ import annotations
@@ -32,9 +32,10 @@ from zerith_gym.simulator import Simulator
 from zerith_gym.task import FALL_HEIGHT
 
 
-def random_actions(steps: int, num_robots: int, seed: int = 0) -> np.ndarray:
+def random_actions(steps: int, num_robots: int, scale: float, seed: int = 0) -> np.ndarray:
+    """Uniform actions in [-scale, scale]: 1 makes robots fall within ~30 steps, 0.2 keeps more upright."""
     rng = np.random.default_rng(seed)
-    return rng.uniform(-1.0, 1.0, size=(steps, num_robots, robot.NUM_JOINTS)).astype(np.float32)
+    return rng.uniform(-scale, scale, size=(steps, num_robots, robot.NUM_JOINTS)).astype(np.float32)
 
 
 def physics_rate(sim: Simulator, actions: np.ndarray) -> float:
@@ -130,14 +131,18 @@ def main() -> None:
     parser.add_argument("--batch-steps", type=int, default=40000, help="robot-steps per batch size")
     parser.add_argument("--rounds", type=int, default=10, help="rounds of turns between the measures")
     parser.add_argument("--scenario", default="train")
+    parser.add_argument("--action-scale", type=float, default=1.0, help="actions uniform in +-this")
     parser.add_argument("--rollout", action="store_true", help="also time raw physics via mujoco.rollout")
     args = parser.parse_args()
-    print(f"scenario {args.scenario}, physics dt {robot.PHYSICS_DT} s x {robot.DECIMATION} per control step")
+    print(
+        f"scenario {args.scenario}, actions uniform in +-{args.action_scale}, "
+        f"physics dt {robot.PHYSICS_DT} s x {robot.DECIMATION} per control step"
+    )
 
     if args.steps > 0:
         wrapped = gym.make("Zerith1-v0", scenario=args.scenario)
         env = wrapped.unwrapped
-        actions = random_actions(args.steps, 1)[:, 0]
+        actions = random_actions(args.steps, 1, args.action_scale)[:, 0]
         wrapped.reset(seed=0)
         single_env_rate(wrapped, actions[:500])  # warm-up
         measures = {
@@ -151,7 +156,7 @@ def main() -> None:
     for num in args.num_envs:
         venv = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario)
         venv.reset()
-        actions = random_actions(max(args.batch_steps // num, args.rounds), num)
+        actions = random_actions(max(args.batch_steps // num, args.rounds), num, args.action_scale)
         vec_env_rate(venv, actions[:10])  # warm-up
         measures = {
             "raw mj_step loop": lambda a, v=venv: physics_rate(v.robots.sim, a),

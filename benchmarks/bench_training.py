@@ -86,7 +86,9 @@ def main() -> None:
     parser.add_argument("--vec", choices=["batched", "dummy"], default="batched")
     parser.add_argument("--iterations", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (the env uses one core)")
     args = parser.parse_args()
+    torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads; env: {args.vec}; n_steps {N_STEPS}")
     print("algo                       envs  net            steps/s  collecting")
     for num_envs in args.num_envs:
