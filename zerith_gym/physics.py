@@ -41,10 +41,13 @@ class NominalModel:
     gain: np.ndarray  # kp per actuator
     damping: np.ndarray  # kv per actuator
     forcerange: np.ndarray
+    gainprm: np.ndarray
+    biasprm: np.ndarray
     root: int
     links: np.ndarray
     friction_geoms: np.ndarray
     foot_geoms: np.ndarray
+    foot_size: np.ndarray  # half sizes of the foot boxes (feet, 3)
 
     @staticmethod
     def capture(model: mujoco.MjModel, terrain: Terrain) -> NominalModel:
@@ -62,47 +65,77 @@ class NominalModel:
             gain=model.actuator_gainprm[:, 0].copy(),
             damping=-model.actuator_biasprm[:, 2].copy(),
             forcerange=model.actuator_forcerange.copy(),
+            gainprm=model.actuator_gainprm.copy(),
+            biasprm=model.actuator_biasprm.copy(),
             root=root,
             links=links,
             friction_geoms=np.concatenate([feet, ground]),
             foot_geoms=feet,
+            foot_size=model.geom_size[feet].copy(),
         )
 
 
-def apply_domain(model: mujoco.MjModel, nominal: NominalModel, params: DomainParams) -> None:
-    """Write one robot's domain parameters (a batch of one) into its model, starting from nominal values."""
-    root, links = nominal.root, nominal.links
-    model.body_mass[:] = nominal.body_mass
-    model.body_inertia[:] = nominal.body_inertia
-    model.body_ipos[:] = nominal.body_ipos
-    root_scale = 1.0 + params.added_mass[0, 0] / nominal.body_mass[root]
-    model.body_mass[root] *= root_scale
-    model.body_inertia[root] *= root_scale
-    model.body_ipos[root] += params.com_offset[0]
-    model.body_mass[links] *= params.link_mass_scale[0]
-    model.body_inertia[links] *= params.link_mass_scale[0][:, None]
-    model.geom_friction[:] = nominal.geom_friction
-    model.geom_friction[nominal.friction_geoms, 0] = params.friction[0, 0]
-    strength = params.motor_strength[0]
-    kp = nominal.gain * strength * params.kp_scale[0]
-    model.actuator_gainprm[:, 0] = kp
-    model.actuator_biasprm[:, 1] = -kp
-    model.actuator_biasprm[:, 2] = -nominal.damping * strength * params.kd_scale[0]
-    model.actuator_forcerange[:] = nominal.forcerange * strength[:, None]
+def apply_domain(models: list[mujoco.MjModel], nominal: NominalModel, params: DomainParams) -> None:
+    """Write robot k's domain parameters (row k of `params`) into `models[k]`, from the nominal values.
+
+    The randomized fields of all robots are computed together, then copied into each model.
+    """
+    n, root, links = len(models), nominal.root, nominal.links
+    mass = np.repeat(nominal.body_mass[None], n, axis=0)
+    inertia = np.repeat(nominal.body_inertia[None], n, axis=0)
+    ipos = np.repeat(nominal.body_ipos[None], n, axis=0)
+    root_scale = 1.0 + params.added_mass[:, 0] / nominal.body_mass[root]
+    mass[:, root] *= root_scale
+    inertia[:, root] *= root_scale[:, None]
+    ipos[:, root] += params.com_offset
+    mass[:, links] *= params.link_mass_scale
+    inertia[:, links] *= params.link_mass_scale[:, :, None]
+    friction = np.repeat(nominal.geom_friction[None], n, axis=0)
+    friction[:, nominal.friction_geoms, 0] = params.friction
+    strength = params.motor_strength
+    kp = nominal.gain * strength * params.kp_scale
+    gainprm = np.repeat(nominal.gainprm[None], n, axis=0)
+    gainprm[:, :, 0] = kp
+    biasprm = np.repeat(nominal.biasprm[None], n, axis=0)
+    biasprm[:, :, 1] = -kp
+    biasprm[:, :, 2] = -nominal.damping * strength * params.kd_scale
+    fields = {
+        "body_mass": mass,
+        "body_inertia": inertia,
+        "body_ipos": ipos,
+        "geom_friction": friction,
+        "actuator_gainprm": gainprm,
+        "actuator_biasprm": biasprm,
+        "actuator_forcerange": nominal.forcerange * strength[:, :, None],
+    }
+    for k, model in enumerate(models):
+        for name, values in fields.items():
+            getattr(model, name)[:] = values[k]
 
 
-def reset_state(
-    model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, terrain: Terrain, foot_geoms: np.ndarray
+_SOLE_CORNERS = np.array([[sx, sy, -1.0] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)])
+"""Bottom corners of a box geom, in units of its half sizes."""
+
+
+def reset_states(
+    models: list[mujoco.MjModel],
+    datas: list[mujoco.MjData],
+    qpos: np.ndarray,
+    terrain: Terrain,
+    nominal: NominalModel,
 ) -> None:
-    """Set the robot at rest at `qpos`, lowered so its lowest foot corner just clears the ground."""
-    mujoco.mj_resetData(model, data)
-    data.qpos[:] = qpos
-    data.ctrl[:] = robot.DEFAULT_JOINT_POS
-    mujoco.mj_kinematics(model, data)
-    corners = np.array([[sx, sy, -1.0] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)])
-    lowest = np.inf
-    for g in foot_geoms:
-        points = data.geom_xpos[g] + (corners * model.geom_size[g]) @ data.geom_xmat[g].reshape(3, 3).T
-        lowest = min(lowest, float(np.min(points[:, 2] - terrain.height_at(points[:, :2]))))
-    data.qpos[2] = qpos[2] - lowest + GROUND_CLEARANCE
-    mujoco.mj_forward(model, data)
+    """Set robot k at rest at `qpos[k]`, lowered so its lowest foot corner just clears the ground."""
+    feet = nominal.foot_geoms
+    for model, data, q in zip(models, datas, qpos, strict=True):
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = q
+        data.ctrl[:] = robot.DEFAULT_JOINT_POS
+        mujoco.mj_kinematics(model, data)
+    centre = np.array([data.geom_xpos[feet] for data in datas])  # (n, feet, 3)
+    rotation = np.array([data.geom_xmat[feet] for data in datas]).reshape(len(datas), len(feet), 3, 3)
+    corners = centre[:, :, None] + (_SOLE_CORNERS * nominal.foot_size[:, None]) @ rotation.swapaxes(-1, -2)
+    clearance = corners[..., 2] - terrain.height_at(corners[..., :2])  # (n, feet, corners)
+    lowest = np.min(clearance.reshape(len(datas), -1), axis=1)
+    for model, data, q, low in zip(models, datas, qpos, lowest.tolist(), strict=True):
+        data.qpos[2] = q[2] - low + GROUND_CLEARANCE
+        mujoco.mj_forward(model, data)

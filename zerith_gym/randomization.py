@@ -1,7 +1,7 @@
-"""Domain randomization: ranges (paper Tables 5 and 6), per-episode sampling, and applying to a model.
+"""Domain randomization: ranges (paper Tables 5 and 6) and per-episode sampling from uniform numbers.
 
-A sample is a `DomainParams` of arrays with a leading batch axis; each robot draws its own from its own
-random generator, always consuming the same amount of randomness (even for degenerate ranges), so a
+A sample is a `DomainParams` of arrays with a leading batch axis, computed from uniform numbers that each
+robot draws from its own random generator, always the same amount (even for degenerate ranges), so a
 batch of robots reproduces the same robots simulated one by one.
 """
 
@@ -85,15 +85,14 @@ class DomainParams:
         """All parameters side by side, (n, DOMAIN_VECTOR_SIZE), in field order (the critic's layout)."""
         return np.concatenate([getattr(self, f.name) for f in fields(self)], axis=1)
 
-    def row(self, i: int) -> DomainParams:
-        """The parameters of robot i, as a batch of one."""
-        return DomainParams(**{f.name: getattr(self, f.name)[i : i + 1] for f in fields(self)})
-
     @staticmethod
-    def stack(rows: list[DomainParams]) -> DomainParams:
-        return DomainParams(
-            **{f.name: np.concatenate([getattr(r, f.name) for r in rows]) for f in fields(DomainParams)}
-        )
+    def from_vector(vector: np.ndarray) -> DomainParams:
+        """Views of the columns of `vector` (n, DOMAIN_VECTOR_SIZE) as parameters (inverse of `as_vector`)."""
+        params, start = {}, 0
+        for name, size in DOMAIN_SIZES.items():
+            params[name] = vector[:, start : start + size]
+            start += size
+        return DomainParams(**params)
 
 
 DOMAIN_SIZES = {
@@ -107,13 +106,21 @@ DOMAIN_SIZES = {
     "action_delay": 1,
 }
 DOMAIN_VECTOR_SIZE = sum(DOMAIN_SIZES.values())
+DOMAIN_DRAWS = DOMAIN_VECTOR_SIZE
+"""Uniform numbers in [0, 1) consumed by one robot's domain parameters: one per value."""
 
 
-def sample_domain(rng: np.random.Generator, ranges: RandomizationRanges) -> DomainParams:
-    """One robot's parameters (as a batch of one), drawn uniformly from `ranges`."""
-    return DomainParams(
-        **{name: rng.uniform(*getattr(ranges, name), size=(1, size)) for name, size in DOMAIN_SIZES.items()}
-    )
+def uniform_in(bounds: Range, uniforms: np.ndarray) -> np.ndarray:
+    """Map uniforms in [0, 1) onto [low, high), exactly as `Generator.uniform(low, high)` does."""
+    low, high = bounds
+    return low + (high - low) * uniforms
+
+
+def domain_from_uniforms(uniforms: np.ndarray, ranges: RandomizationRanges) -> DomainParams:
+    """The parameters of n robots from uniforms (n, DOMAIN_DRAWS) in [0, 1), in `DOMAIN_SIZES` order."""
+    bounds = np.repeat([getattr(ranges, name) for name in DOMAIN_SIZES], list(DOMAIN_SIZES.values()), axis=0)
+    low, high = bounds[:, 0], bounds[:, 1]
+    return DomainParams.from_vector(low + (high - low) * uniforms)
 
 
 def delay_lags(action_delay: np.ndarray, physics_dt: float, decimation: int) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 
 from zerith_gym import robot
 from zerith_gym.disturbances import FORCE_TARGETS
-from zerith_gym.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_state
+from zerith_gym.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_states
 from zerith_gym.randomization import DomainParams
 from zerith_gym.terrain import Terrain
 
@@ -81,12 +81,13 @@ class Simulator:
 
     def reset(self, ids: np.ndarray, domain: DomainParams, qpos: np.ndarray, lags: np.ndarray) -> None:
         """Restart robots `ids` with their domain parameters, initial positions and lags (row k: ids[k])."""
-        for k, i in enumerate(ids.tolist()):
-            model, data = self.models[i], self.datas[i]
-            apply_domain(model, self.nominal, domain.row(k))
-            reset_state(model, data, qpos[k], self.terrain, self.nominal.foot_geoms)
+        ids = ids.tolist()
+        models, datas = [self.models[i] for i in ids], [self.datas[i] for i in ids]
+        apply_domain(models, self.nominal, domain)
+        reset_states(models, datas, qpos, self.terrain, self.nominal)
+        for k, i in enumerate(ids):
             self._segments[i] = lag_segments(lags[k])
-            self.sensordata[i] = data.sensordata
+            self.sensordata[i] = datas[k].sensordata
 
     def step(self, targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None) -> np.ndarray:
         """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.

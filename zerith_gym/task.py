@@ -38,7 +38,14 @@ from zerith_gym.observations import (
     layout_slices,
     policy_noise_scale,
 )
-from zerith_gym.randomization import DomainParams, delay_lags, sample_domain
+from zerith_gym.randomization import (
+    DOMAIN_DRAWS,
+    DOMAIN_VECTOR_SIZE,
+    DomainParams,
+    delay_lags,
+    domain_from_uniforms,
+    uniform_in,
+)
 from zerith_gym.rewards import REWARD_NAMES, reward_terms
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import Terrain
@@ -60,6 +67,18 @@ _COMMAND = slice(_FORCE.stop, _FORCE.stop + COMMAND_DRAWS)
 _PUSH = slice(_COMMAND.stop, _COMMAND.stop + PUSH_DRAWS)
 STEP_DRAWS = _PUSH.stop
 """Uniform numbers each robot draws per control step, used or not, to keep streams aligned."""
+_RESET = layout_slices(
+    (
+        ("domain", DOMAIN_DRAWS),
+        ("joint_scale", robot.NUM_JOINTS),
+        ("roll_pitch", 2),
+        ("spawn", 2),
+        ("command", COMMAND_DRAWS),
+        ("step", STEP_DRAWS),
+    )
+)
+RESET_DRAWS = _RESET["step"].stop
+"""Uniform numbers each robot draws per reset, in the order of `_RESET`."""
 _COS_FALL_TILT = float(np.cos(FALL_TILT))
 _P = layout_slices(POLICY_LAYOUT)
 _C = layout_slices(CRITIC_LAYOUT)
@@ -144,8 +163,8 @@ class ZerithTask:
         self.actions = np.zeros((n, 3, robot.NUM_JOINTS))  # a_t, a_{t-1}, a_{t-2}
         self.joint_vel = np.zeros((n, robot.NUM_JOINTS))
         self.force = np.zeros((n, 3))
-        self.domain = DomainParams.stack([sample_domain(np.random.default_rng(0), self.ranges)] * n)
-        self.domain_vector = self.domain.as_vector()
+        self.domain_vector = np.zeros((n, DOMAIN_VECTOR_SIZE))
+        self.domain = DomainParams.from_vector(self.domain_vector)  # views of domain_vector
         self.lags = np.zeros((n, robot.DECIMATION), dtype=int)
         self.episode_sums = np.zeros((n, len(REWARD_NAMES)))
         self.policy_obs = np.zeros((n, POLICY_SIZE), dtype=np.float32)
@@ -188,30 +207,28 @@ class ZerithTask:
         (len(ids), 7 + 12) with the base height left at 0 (the caller places the feet on the ground).
         """
         ids = np.asarray(ids)
-        ranges, count = self.ranges, len(ids)
-        qpos = np.zeros((count, 7 + robot.NUM_JOINTS))
-        rows, command_uniforms = [], np.empty((count, COMMAND_DRAWS))
-        for k, i in enumerate(ids):
-            rng = self.rngs[i]
-            rows.append(sample_domain(rng, ranges))
-            joint_scale = rng.uniform(*ranges.init_joint_scale, size=robot.NUM_JOINTS)
-            roll, pitch = rng.uniform(-1.0, 1.0, size=2) * ranges.init_roll_pitch
-            spawn = rng.uniform(-1.0, 1.0, size=2) * self.terrain.spec.spawn_jitter
-            command_uniforms[k] = rng.random(COMMAND_DRAWS)
-            self._uniforms[i] = rng.random(STEP_DRAWS)  # the first observation's noise
-            qpos[k, :2] = np.asarray(self.terrain.spec.spawn_xy) + spawn
-            cr, sr, cp, sp = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2)
-            qpos[k, 3:7] = (cp * cr, cp * sr, sp * cr, -sp * sr)
-            qpos[k, 7:] = robot.DEFAULT_JOINT_POS * joint_scale
-        domain = DomainParams.stack(rows)
-        for name, value in vars(domain).items():
-            getattr(self.domain, name)[ids] = value
+        ranges, spawn = self.ranges, self.terrain.spec
+        u = np.empty((len(ids), RESET_DRAWS))
+        for k, i in enumerate(ids.tolist()):
+            self.rngs[i].random(out=u[k])
+        roll, pitch = (uniform_in((-1.0, 1.0), u[:, _RESET["roll_pitch"]]) * ranges.init_roll_pitch).T
+        cr, sr, cp, sp = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2)
+        qpos = np.zeros((len(ids), 7 + robot.NUM_JOINTS))
+        qpos[:, :2] = (
+            np.asarray(spawn.spawn_xy) + uniform_in((-1.0, 1.0), u[:, _RESET["spawn"]]) * spawn.spawn_jitter
+        )
+        qpos[:, 3:7] = np.column_stack([cp * cr, cp * sr, sp * cr, -sp * sr])
+        qpos[:, 7:] = robot.DEFAULT_JOINT_POS * uniform_in(
+            ranges.init_joint_scale, u[:, _RESET["joint_scale"]]
+        )
+        self._uniforms[ids] = u[:, _RESET["step"]]  # the first observation's noise
+        domain = domain_from_uniforms(u[:, _RESET["domain"]], ranges)
         self.domain_vector[ids] = domain.as_vector()
         self.lags[ids] = delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION)
         self.command[ids] = (
             self.fixed_command
             if self.fixed_command is not None
-            else sample_commands(command_uniforms, self.scenario.command_ranges)
+            else sample_commands(u[:, _RESET["command"]], self.scenario.command_ranges)
         )
         self.step_count[ids] = 0
         self.gait_step[ids] = 0
