@@ -144,13 +144,22 @@ def scaled_scenario(scenario: Scenario, scale: float) -> Scenario:
     )
 
 
-def curriculum(budget: int, steps: int, stages: int) -> list[tuple[float, int]]:
-    """(randomization scale, env steps) stages: `stages` equal steps from 0 up to 1 over `steps`, then 1."""
-    if steps <= 0:
-        return [(1.0, budget)]
-    steps = min(steps, budget)
-    plan = [(k / stages, steps // stages) for k in range(stages)]
-    return [*plan, (1.0, budget - sum(n for _, n in plan))]
+def curriculum(budget: int, steps: int, stages: int, start: int = 0) -> list[tuple[float, int]]:
+    """(randomization scale, env steps) for the env steps `start` to `start + budget` of a run.
+
+    Over a run's first `steps` env steps the scale rises from 0 to 1 in `stages` equal stages (0, 1/stages,
+    ...); after them it is 1. `start` > 0 continues a resumed run where it stopped.
+    """
+    steps = max(steps, 0)
+    bounds = [k * steps // stages for k in range(stages)] + [steps]
+    end, plan = start + budget, []
+    for k in range(stages):
+        low, high = max(bounds[k], start), min(bounds[k + 1], end)
+        if high > low:
+            plan.append((k / stages, high - low))
+    if end > max(steps, start):
+        plan.append((1.0, end - max(steps, start)))
+    return plan
 
 
 def main() -> None:
@@ -162,7 +171,9 @@ def main() -> None:
     parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="override the preset's budget")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("-f", "--log-folder", type=Path, default=Path("logs"))
-    parser.add_argument("--resume", type=Path, default=None, help="a run folder to continue")
+    parser.add_argument(
+        "--resume", type=Path, default=None, help="a run folder to continue (-n more steps; same curriculum)"
+    )
     parser.add_argument("--checkpoint-freq", type=int, default=500_000, help="env steps between checkpoints")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest for small nets)")
     parser.add_argument(
@@ -182,7 +193,6 @@ def main() -> None:
     scenario = get_scenario(env_kwargs.pop("scenario", "train"))
     norm = normalize_kwargs(preset)
     run = args.resume or next_run_folder(args.log_folder, args.algo)
-    stages = curriculum(budget, 0 if args.resume else args.curriculum_steps, args.curriculum_stages)
 
     def make_env(scale: float, previous: VecNormalize | None) -> VecEnv:
         env = zerith_gym.make_vec_env(
@@ -197,10 +207,14 @@ def main() -> None:
             wrapped.obs_rms, wrapped.ret_rms = previous.obs_rms, previous.ret_rms
         return wrapped
 
-    env = make_env(stages[0][0], None)
     if args.resume:
-        model = HuRiPPO.load(run / f"{ENV_ID}.zip", env=env, tensorboard_log=args.tensorboard_log)
+        model = HuRiPPO.load(run / f"{ENV_ID}.zip", tensorboard_log=args.tensorboard_log)
+        start = model.num_timesteps
     else:
+        model, start = None, 0
+    stages = curriculum(budget, args.curriculum_steps, args.curriculum_stages, start)
+    env = make_env(stages[0][0], None)
+    if model is None:
         model = HuRiPPO(
             preset["policy"],
             env,
@@ -210,21 +224,27 @@ def main() -> None:
             verbose=1,
             **algorithm_kwargs(preset),
         )
-    env_kwargs["scenario"] = scenario.name
-    run_args = {"algo": args.algo, "env": ENV_ID, "seed": args.seed, "env_kwargs": env_kwargs}
+    else:
+        model.set_env(env)
+    run_args = {
+        "algo": args.algo,
+        "env": ENV_ID,
+        "seed": args.seed,
+        "env_kwargs": {**env_kwargs, "scenario": scenario.name},
+    }
     print(f"Writing to {run}; curriculum (randomization scale, steps): {stages}")
     checkpoints = CheckpointCallback(
         max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True
     )
     callbacks = CallbackList([EpisodeStats(), checkpoints])
-    start = time.time()
+    began = time.time()
     for k, (scale, steps) in enumerate(stages):
         if k > 0:
             env = make_env(scale, model.get_env())
             model.set_env(env)
         model.learn(steps, callback=callbacks, reset_num_timesteps=not args.resume and k == 0)
     save_run(model, run, preset, run_args)
-    print(f"{model.num_timesteps} steps in {time.time() - start:.0f} s; saved {run / (ENV_ID + '.zip')}")
+    print(f"{model.num_timesteps} steps in {time.time() - began:.0f} s; saved {run / (ENV_ID + '.zip')}")
 
 
 if __name__ == "__main__":
