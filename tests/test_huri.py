@@ -6,6 +6,7 @@ import pytest
 import torch as th
 from gymnasium import spaces
 from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import KVWriter, Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -177,6 +178,36 @@ def test_risk_and_loss_keys_are_logged():
     assert expected <= recorder.records.keys()
     shares = [recorder.records[f"rollout/beta_iqr_{kind}"][-1] for kind in ("averse", "neutral", "seeking")]
     assert sum(shares) == pytest.approx(1.0)
+
+
+class InitCounter(BaseCallback):
+    """Counts how often SB3 initializes it, and checks the RND predictor trained before its rollout end."""
+
+    def __init__(self):
+        super().__init__()
+        self.inits, self.rollout_ends = 0, 0
+
+    def _init_callback(self) -> None:
+        self.inits += 1
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        self.rollout_ends += 1
+        assert "train/rnd_loss" in self.logger.name_to_value
+
+
+@pytest.mark.parametrize("as_list", [False, True])
+def test_user_callbacks_are_initialized_once_next_to_the_rnd_trainer(as_list):
+    model = HuRiPPO("MlpPolicy", dict_env(), seed=0, **SMALL)
+    counter = InitCounter()
+    model.learn(128, callback=[counter] if as_list else counter)
+    assert (counter.inits, counter.rollout_ends) == (1, 2)
+    # Plain functions are callbacks too (SB3 wraps them in a ConvertCallback).
+    calls = []
+    model.learn(64, callback=lambda locals_, globals_: calls.append(1) is None)
+    assert len(calls) == 32
 
 
 def test_progress_bar_and_tensorboard(tmp_path):

@@ -6,7 +6,7 @@ from typing import Any, ClassVar, NamedTuple, TypeVar
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
@@ -250,12 +250,15 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.clip_range = FloatSchedule(self.clip_range)
 
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
-        callback = super()._init_callback(callback, progress_bar)
         if self.policy.rnd is not None:
             # The RND predictor trains first at the end of each rollout, before user callbacks run.
-            callback = CallbackList([RNDTrainingCallback(), callback])
-            callback.init_callback(self)
-        return callback
+            # SB3 builds and initializes the list once, so each user callback is initialized once.
+            if callback is None:
+                callback = []
+            elif not isinstance(callback, list):
+                callback = [callback if isinstance(callback, BaseCallback) else ConvertCallback(callback)]
+            callback = [RNDTrainingCallback(), *callback]
+        return super()._init_callback(callback, progress_bar)
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts, variables = super()._get_torch_save_params()
