@@ -68,7 +68,9 @@ def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
         raise ValueError(f"action must have shape {shape}, got {actions.shape}")
     if not np.isfinite(actions).all():
         raise ValueError(f"action contains NaN or infinite values: {actions}")
-    return np.clip(actions, -1.0, 1.0, out=actions)
+    return np.minimum(
+        np.maximum(actions, -1.0, out=actions), 1.0, out=actions
+    )  # np.clip, without its overhead
 
 
 class ZerithBatch:

@@ -135,7 +135,7 @@ def reset_states(
     rotation = np.array([data.geom_xmat[feet] for data in datas]).reshape(len(datas), len(feet), 3, 3)
     corners = centre[:, :, None] + (_SOLE_CORNERS * nominal.foot_size[:, None]) @ rotation.swapaxes(-1, -2)
     clearance = corners[..., 2] - terrain.height_at(corners[..., :2])  # (n, feet, corners)
-    lowest = np.min(clearance.reshape(len(datas), -1), axis=1)
+    lowest = np.minimum.reduce(clearance.reshape(len(datas), -1), axis=1)
     for model, data, q, low in zip(models, datas, qpos, lowest.tolist(), strict=True):
         data.qpos[2] = q[2] - low + GROUND_CLEARANCE
         mujoco.mj_forward(model, data)

@@ -110,17 +110,19 @@ DOMAIN_DRAWS = DOMAIN_VECTOR_SIZE
 """Uniform numbers in [0, 1) consumed by one robot's domain parameters: one per value."""
 
 
-def uniform_in(bounds: Range, uniforms: np.ndarray) -> np.ndarray:
-    """Map uniforms in [0, 1) onto [low, high), exactly as `Generator.uniform(low, high)` does."""
+def uniform_in(bounds: Range | tuple[np.ndarray, np.ndarray], uniforms: np.ndarray) -> np.ndarray:
+    """Map uniforms in [0, 1) onto [low, high), exactly as `Generator.uniform(low, high)` does.
+
+    `low` and `high` are numbers or arrays broadcasting against `uniforms`.
+    """
     low, high = bounds
     return low + (high - low) * uniforms
 
 
-def domain_from_uniforms(uniforms: np.ndarray, ranges: RandomizationRanges) -> DomainParams:
-    """The parameters of n robots from uniforms (n, DOMAIN_DRAWS) in [0, 1), in `DOMAIN_SIZES` order."""
+def domain_bounds(ranges: RandomizationRanges) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bound of each entry of the domain vector, (DOMAIN_VECTOR_SIZE,) each."""
     bounds = np.repeat([getattr(ranges, name) for name in DOMAIN_SIZES], list(DOMAIN_SIZES.values()), axis=0)
-    low, high = bounds[:, 0], bounds[:, 1]
-    return DomainParams.from_vector(low + (high - low) * uniforms)
+    return bounds[:, 0], bounds[:, 1]
 
 
 def delay_lags(action_delay: np.ndarray, physics_dt: float, decimation: int) -> np.ndarray:

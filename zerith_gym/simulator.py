@@ -98,16 +98,18 @@ class Simulator:
         non-finite velocities.
         """
         qvel, sensordata, warned = self._qvel, self.sensordata, []
-        for i, sim in enumerate(self._robots):
+        for i, (sim, segments, robot_targets, robot_force) in enumerate(
+            zip(self._robots, self._segments, targets, force, strict=True)
+        ):
             for row in sim.force_rows:
-                row[:] = force[i]
+                row[:] = robot_force
             if kicks is not None:
                 sim.qvel[:2] += kicks[i]
-            warnings = sum(sim.bad_state_warnings.tolist())
-            for lag, count in self._segments[i]:
-                sim.ctrl[:] = targets[i, lag]
+            warnings = sim.bad_state_warnings.tolist()
+            for lag, count in segments:
+                sim.ctrl[:] = robot_targets[lag]
                 mujoco.mj_step(sim.model, sim.data, nstep=count)
-            warned.append(sum(sim.bad_state_warnings.tolist()) != warnings)
+            warned.append(sim.bad_state_warnings.tolist() != warnings)
             qvel[i] = sim.qvel
             sensordata[i] = sim.sensordata
         return np.array(warned) | ~np.isfinite(qvel).all(axis=1)

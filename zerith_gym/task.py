@@ -43,7 +43,7 @@ from zerith_gym.randomization import (
     DOMAIN_VECTOR_SIZE,
     DomainParams,
     delay_lags,
-    domain_from_uniforms,
+    domain_bounds,
     uniform_in,
 )
 from zerith_gym.rewards import REWARD_NAMES, reward_terms
@@ -163,6 +163,7 @@ class ZerithTask:
         self.actions = np.zeros((n, 3, robot.NUM_JOINTS))  # a_t, a_{t-1}, a_{t-2}
         self.joint_vel = np.zeros((n, robot.NUM_JOINTS))
         self.force = np.zeros((n, 3))
+        self._domain_bounds = domain_bounds(self.ranges)
         self.domain_vector = np.zeros((n, DOMAIN_VECTOR_SIZE))
         self.domain = DomainParams.from_vector(self.domain_vector)  # views of domain_vector
         self.lags = np.zeros((n, robot.DECIMATION), dtype=int)
@@ -197,6 +198,7 @@ class ZerithTask:
         self._hip_roll_yaw = np.array([0, 1, 6, 7])
         self._xy_of_two = np.array([0, 1, 3, 4])
         self._z_of_two = np.array([2, 5])
+        self._foot_of_sample = np.repeat([0, 1], len(HEIGHT_SAMPLE_OFFSETS))
         self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
 
     # ----------------------------------------------------------------------------------------- reset
@@ -207,29 +209,34 @@ class ZerithTask:
         (len(ids), 7 + 12) with the base height left at 0 (the caller places the feet on the ground).
         """
         ids = np.asarray(ids)
-        ranges, spawn = self.ranges, self.terrain.spec
+        ranges, terrain = self.ranges, self.terrain.spec
         u = np.empty((len(ids), RESET_DRAWS))
         for k, i in enumerate(ids.tolist()):
             self.rngs[i].random(out=u[k])
-        roll, pitch = (uniform_in((-1.0, 1.0), u[:, _RESET["roll_pitch"]]) * ranges.init_roll_pitch).T
-        cr, sr, cp, sp = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2)
-        qpos = np.zeros((len(ids), 7 + robot.NUM_JOINTS))
-        qpos[:, :2] = (
-            np.asarray(spawn.spawn_xy) + uniform_in((-1.0, 1.0), u[:, _RESET["spawn"]]) * spawn.spawn_jitter
+        half_roll_pitch = uniform_in((-1.0, 1.0), u[:, _RESET["roll_pitch"]]) * ranges.init_roll_pitch / 2
+        (cr, cp), (sr, sp) = np.cos(half_roll_pitch).T, np.sin(half_roll_pitch).T
+        spawn = uniform_in((-1.0, 1.0), u[:, _RESET["spawn"]]) * terrain.spawn_jitter
+        joint_scale = uniform_in(ranges.init_joint_scale, u[:, _RESET["joint_scale"]])
+        qpos = np.column_stack(
+            [
+                terrain.spawn_xy + spawn,
+                np.zeros(len(ids)),
+                cp * cr,
+                cp * sr,
+                sp * cr,
+                -sp * sr,
+                robot.DEFAULT_JOINT_POS * joint_scale,
+            ]
         )
-        qpos[:, 3:7] = np.column_stack([cp * cr, cp * sr, sp * cr, -sp * sr])
-        qpos[:, 7:] = robot.DEFAULT_JOINT_POS * uniform_in(
-            ranges.init_joint_scale, u[:, _RESET["joint_scale"]]
-        )
-        self._uniforms[ids] = u[:, _RESET["step"]]  # the first observation's noise
-        domain = domain_from_uniforms(u[:, _RESET["domain"]], ranges)
-        self.domain_vector[ids] = domain.as_vector()
+        domain_vector = uniform_in(self._domain_bounds, u[:, _RESET["domain"]])
+        self.domain_vector[ids] = domain_vector
+        domain = DomainParams.from_vector(domain_vector)
         self.lags[ids] = delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION)
-        self.command[ids] = (
-            self.fixed_command
-            if self.fixed_command is not None
-            else sample_commands(u[:, _RESET["command"]], self.scenario.command_ranges)
-        )
+        if self.fixed_command is None:
+            self.command[ids] = sample_commands(u[:, _RESET["command"]], self.scenario.command_ranges)
+        else:
+            self.command[ids] = self.fixed_command
+        self._uniforms[ids] = u[:, _RESET["step"]]  # the first observation's noise
         self.step_count[ids] = 0
         self.gait_step[ids] = 0
         self.actions[ids] = 0.0
@@ -324,7 +331,7 @@ class ZerithTask:
         if self.terrain.is_plane:
             base_height = base_pos[:, 2]
             foot_clearance = foot_z
-            height_samples = np.repeat(foot_z, len(HEIGHT_SAMPLE_OFFSETS), axis=1)
+            height_samples = foot_z[:, self._foot_of_sample]  # the sole height at every sample point
         else:
             base_height = base_pos[:, 2] - self.terrain.height_at(base_pos[:, :2])
             feet_xy = foot_pos[:, self._xy_of_two].reshape(n, 2, 2)
