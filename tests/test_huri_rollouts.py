@@ -6,7 +6,9 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import RolloutBuffer
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_huri import HuRiPolicy, HuRiPPO
 from sb3_huri.common import wang_weights
@@ -120,3 +122,47 @@ def test_time_out_targets_bootstrap_from_the_final_observation():
     first_of_next = buffer.atoms[steps + 1, envs] if (steps + 1 < n_steps).all() else None
     if first_of_next is not None:
         assert not np.allclose(first_of_next, buffer.bootstrap_atoms[steps, envs])
+
+
+class FinalObservationRecorder(BaseCallback):
+    """Keeps the final observations of truncated episodes as the algorithm saw them, and at the end of the
+    rollout (before the update) the critic's sorted atoms for them."""
+
+    def __init__(self):
+        super().__init__()
+        self.final_observations: dict[tuple[int, int], np.ndarray] = {}
+        self.expected_atoms: dict[tuple[int, int], np.ndarray] = {}
+
+    def _on_step(self) -> bool:
+        step = self.locals["rollout_buffer"].pos
+        for env_index, info in enumerate(self.locals["infos"]):
+            if info.get("TimeLimit.truncated", False):
+                self.final_observations[(step, env_index)] = info["terminal_observation"]
+        return True
+
+    def _on_rollout_end(self) -> None:
+        for key, observation in self.final_observations.items():
+            with th.no_grad():
+                atoms = self.model.policy.predict_values(self.model.policy.obs_to_tensor(observation)[0])
+            self.expected_atoms[key] = th.sort(atoms, dim=-1).values[0].numpy()
+
+
+def test_time_outs_bootstrap_from_the_normalized_final_observation_under_vecnormalize():
+    """As SB3's PPO: the final observation is the one VecNormalize normalized, not the raw one."""
+    n_envs, n_steps = 2, 20
+    env = VecNormalize(
+        make_vec_env("Pendulum-v1", n_envs=n_envs, seed=0, env_kwargs=dict(max_episode_steps=6)),
+        norm_obs=True,
+        norm_reward=True,
+    )
+    model = HuRiPPO(
+        "MlpPolicy", env, n_steps=n_steps, n_epochs=1, variant="huri-no-rnd", n_quantiles=8, seed=0
+    )
+    recorder = FinalObservationRecorder()
+    model.learn(n_steps * n_envs, callback=recorder)
+    buffer = model.rollout_buffer
+    assert len(recorder.expected_atoms) == (n_steps // 6) * n_envs
+    for (step, env_index), expected in recorder.expected_atoms.items():
+        np.testing.assert_allclose(buffer.bootstrap_atoms[step, env_index], expected, rtol=1e-5, atol=1e-6)
+        raw = env.unnormalize_obs(recorder.final_observations[(step, env_index)])
+        assert not np.allclose(raw, recorder.final_observations[(step, env_index)])
