@@ -65,11 +65,20 @@ def test_collapsed_quantiles_with_beta_zero_give_sb3_advantages():
     np.testing.assert_allclose(huri.target_atoms.std(axis=-1), 0.0, atol=1e-5)
 
 
-@pytest.mark.parametrize(("env_id", "max_episode_steps"), [("Pendulum-v1", 20), ("CartPole-v1", None)])
-def test_baseline_variant_trains_exactly_like_sb3_ppo(env_id, max_episode_steps):
+@pytest.mark.parametrize(
+    ("env_id", "max_episode_steps", "options"),
+    [
+        ("Pendulum-v1", 20, {}),
+        ("CartPole-v1", None, {}),
+        # gSDE, and an approximate-KL early stop within the first epoch.
+        ("Pendulum-v1", 20, dict(use_sde=True, sde_sample_freq=4, target_kl=1e-4, n_epochs=4)),
+    ],
+)
+def test_baseline_variant_trains_exactly_like_sb3_ppo(env_id, max_episode_steps, options):
     """Same seed, same policy class: identical rollouts, advantages, returns and updated parameters."""
     env_kwargs = {"max_episode_steps": max_episode_steps} if max_episode_steps else None
     settings = dict(n_steps=32, batch_size=16, n_epochs=2, gamma=GAMMA, gae_lambda=GAE_LAMBDA, seed=3)
+    settings |= options
     settings |= dict(ent_coef=0.01, vf_coef=1.0, max_grad_norm=1.0, learning_rate=1e-3)
     policy_kwargs = dict(net_arch=[32, 32])
     # Each model seeds the global random generators when built: build and train one after the other.
@@ -100,6 +109,9 @@ def test_baseline_variant_trains_exactly_like_sb3_ppo(env_id, max_episode_steps)
         ppo.policy.state_dict().items(), huri.policy.state_dict().values(), strict=True
     ):
         th.testing.assert_close(huri_param, ppo_param, rtol=1e-5, atol=1e-6, msg=name)
+    assert huri._n_updates == ppo._n_updates
+    if "target_kl" in options:
+        assert huri._n_updates < 2 * options["n_epochs"]
 
 
 def test_time_out_targets_bootstrap_from_the_final_observation():
