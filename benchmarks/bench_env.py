@@ -9,17 +9,22 @@ For each configuration it prints control steps per second (robot-steps/s for a b
   resets included;
 
 and the ratio env / raw physics. With `--rollout`, it also times raw physics through MuJoCo's threaded
-`mujoco.rollout` (the alternative to the loop; not used by the env, see docs/performance.md).
+`mujoco.rollout` (the alternative to the loop; not used by the env, see docs/performance.md). With
+`--stages`, it also splits a batch's step into its stages (timers around the batch's methods and around
+each `mj_step` call), in microseconds per robot-step.
 
     python benchmarks/bench_env.py                          # single env, and batches of 16 and 64
     python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout --action-scale 0.2
+    python benchmarks/bench_env.py --steps 0 --num-envs 32 --stages
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections import defaultdict
 from collections.abc import Callable
+from types import SimpleNamespace
 
 import gymnasium as gym
 import mujoco
@@ -27,7 +32,7 @@ import numpy as np
 from mujoco import rollout
 
 import zerith_gym
-from zerith_gym import robot
+from zerith_gym import robot, simulator
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import FALL_HEIGHT
 
@@ -100,6 +105,66 @@ def vec_env_rate(env: zerith_gym.ZerithVecEnv, actions: np.ndarray) -> float:
     return actions.shape[0] * actions.shape[1] / (time.perf_counter() - start)
 
 
+MJ_STEP_STAGE = "  of which mj_step itself"
+
+
+def stage_times(env: zerith_gym.ZerithVecEnv, actions: np.ndarray) -> dict[str, float]:
+    """Microseconds per robot-step in each stage of `ZerithVecEnv.step`, from timers around its parts.
+
+    The timers wrap methods of this env's batch (and `mj_step` as the simulator module calls it) while
+    it runs, then are removed; each adds well under a microsecond per call.
+    """
+    batch, mj_step = env.robots, mujoco.mj_step
+    parts = {
+        "task before physics": (batch.task, "before_physics"),
+        "simulator step (all of it)": (batch.sim, "step"),
+        "task after physics": (batch.task, "after_physics"),
+        "reset: task (draws, state)": (batch.task, "reset"),
+        "reset: simulator (models, placement)": (batch.sim, "reset"),
+        "reset: first observations": (batch.task, "observe"),
+    }
+    order = list(parts)
+    order.insert(order.index("simulator step (all of it)") + 1, MJ_STEP_STAGE)
+    totals = dict.fromkeys(order, 0.0)
+
+    def timed(function: Callable, stage: str) -> Callable:
+        def run(*args, **kwargs):
+            start = time.perf_counter()
+            result = function(*args, **kwargs)
+            totals[stage] += time.perf_counter() - start
+            return result
+
+        return run
+
+    for stage, (owner, name) in parts.items():
+        setattr(owner, name, timed(getattr(owner, name), stage))
+    simulator.mujoco = SimpleNamespace(mj_step=timed(mj_step, MJ_STEP_STAGE))
+    try:
+        start = time.perf_counter()
+        for step_actions in actions:
+            env.step(step_actions)
+        total = time.perf_counter() - start
+    finally:
+        simulator.mujoco = mujoco
+        for owner, name in parts.values():
+            delattr(owner, name)
+    totals["VecEnv bookkeeping (the rest)"] = total - sum(totals[stage] for stage in parts)
+    totals["total"] = total
+    return {stage: 1e6 * value / actions.shape[0] / actions.shape[1] for stage, value in totals.items()}
+
+
+def report_stages(num: int, env: zerith_gym.ZerithVecEnv, actions: np.ndarray, rounds: int) -> None:
+    """Print the median time of each stage of a batch's step, and of raw physics, taking turns."""
+    rows = defaultdict(list)
+    for chunk in np.array_split(actions, rounds):
+        for stage, us in stage_times(env, chunk).items():
+            rows[stage].append(us)
+        rows["raw mj_step loop (same actions)"].append(1e6 / physics_rate(env.robots.sim, chunk))
+    print(f"batch of {num}: microseconds per robot-step by stage (median of rounds)")
+    for stage, values in rows.items():
+        print(f"  {stage:40s} {np.median(values):7.1f}")
+
+
 def interleaved(measures: dict[str, Callable[[np.ndarray], float]], actions: np.ndarray, rounds: int) -> dict:
     """Median rate of each measure over `rounds` rounds, the measures taking turns within a round.
 
@@ -133,6 +198,7 @@ def main() -> None:
     parser.add_argument("--scenario", default="train")
     parser.add_argument("--action-scale", type=float, default=1.0, help="actions uniform in +-this")
     parser.add_argument("--rollout", action="store_true", help="also time raw physics via mujoco.rollout")
+    parser.add_argument("--stages", action="store_true", help="also split a batch's step into its stages")
     args = parser.parse_args()
     print(
         f"scenario {args.scenario}, actions uniform in +-{args.action_scale}, "
@@ -168,6 +234,8 @@ def main() -> None:
                     v.robots.sim, a, k
                 )
         report(f"batch of {num} (robot-steps/s)", interleaved(measures, actions, args.rounds))
+        if args.stages:
+            report_stages(num, venv, actions, args.rounds)
 
 
 if __name__ == "__main__":
