@@ -46,6 +46,7 @@ SHIPPED = (
 DEFAULT_CASES = (
     "nominal@0.5",
     "nominal@1.0",
+    "train@0.5",
     *(name for name in SCENARIOS if name not in ("train", "nominal")),
 )
 _CRITIC = layout_slices(CRITIC_LAYOUT)
