@@ -1,0 +1,127 @@
+"""The shipped Zerith-1 agents load and act, RL Zoo finds them, and the training/evaluation tools compute
+what they claim (curriculum scenarios, gait measures)."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import VecNormalize
+
+import zerith_gym
+from sb3_huri import HuRiPPO
+from zerith_gym.randomization import NOMINAL
+from zerith_gym.scenarios import SCENARIOS
+
+REPO = Path(__file__).resolve().parents[1]
+ENV_ID = "Zerith1-v0"
+AGENTS = {"huri": "huri", "huri-baseline": "baseline"}
+"""Shipped RL Zoo algorithm folder -> the HuRiPPO variant it must hold."""
+
+
+def load_script(relative: str):
+    """Import a script of the repository (examples/, benchmarks/) as a module."""
+    path = REPO / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up here
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("algo", list(AGENTS))
+def test_shipped_agent_has_rl_zoo_layout_and_is_small(algo: str) -> None:
+    run = REPO / "trained_agents" / algo / f"{ENV_ID}_1"
+    for name in (f"{ENV_ID}.zip", f"{ENV_ID}/vecnormalize.pkl", f"{ENV_ID}/config.yml", f"{ENV_ID}/args.yml"):
+        assert (run / name).is_file(), name
+    assert (run / f"{ENV_ID}.zip").stat().st_size < 5_000_000
+
+
+@pytest.mark.parametrize(("algo", "variant"), list(AGENTS.items()))
+def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(algo: str, variant: str) -> None:
+    run = REPO / "trained_agents" / algo / f"{ENV_ID}_1"
+    model = HuRiPPO.load(run / f"{ENV_ID}.zip", device="cpu")
+    assert model.variant == variant
+    env = zerith_gym.make_vec_env(4, seed=0, scenario="nominal", command=(0.5, 0.0, 0.0))
+    normalizer = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
+    normalizer.training = False
+    obs = normalizer.reset()
+    for _ in range(100):
+        action, _ = model.predict(obs, deterministic=True)
+        assert action.shape == (4, 12) and np.isfinite(action).all() and np.abs(action).max() <= 1.0
+        obs, _, _, infos = normalizer.step(action)
+        assert not any(info["fall"] for info in infos)
+
+
+@pytest.mark.parametrize("algo", list(AGENTS))
+def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str) -> None:
+    script = shutil.which("rl_zoo3", path=str(Path(sys.executable).parent))
+    command = [script] if script else [sys.executable, "-m", "sb3_huri.zoo"]
+    command += ["enjoy", "--algo", algo, "--env", ENV_ID, "-f", "trained_agents", "--no-render", "-n", "50"]
+    result = subprocess.run(
+        command, cwd=REPO, capture_output=True, text=True, timeout=300, env={**os.environ, "MUJOCO_GL": "egl"}
+    )
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert f"Loading trained_agents/{algo}/{ENV_ID}_1/{ENV_ID}.zip" in result.stdout
+
+
+# ---------------------------------------------------------------------------- training curriculum
+def test_randomization_scale_zero_is_nominal_and_one_is_the_scenario() -> None:
+    train = load_script("examples/train_zerith.py")
+    scenario = SCENARIOS["train"]
+    none, full = train.scaled_scenario(scenario, 0.0), train.scaled_scenario(scenario, 1.0)
+    assert none.randomization == NOMINAL
+    assert none.force.magnitude == (0.0, 0.0)
+    assert full.randomization == scenario.randomization and full.force == scenario.force
+    half = train.scaled_scenario(scenario, 0.5).randomization
+    assert half.friction == pytest.approx((0.55, 1.25))  # 1 + 0.5 ((0.1, 1.5) - 1)
+    assert half.push_velocity == pytest.approx((0.0, 0.25))
+    assert half.observation_noise == pytest.approx(0.5)
+    assert half.push_interval_s == scenario.randomization.push_interval_s
+    assert dataclasses.replace(train.scaled_scenario(scenario, 0.5), name="train").command_ranges == (
+        scenario.command_ranges
+    )
+
+
+def test_curriculum_covers_the_budget_in_rising_stages() -> None:
+    train = load_script("examples/train_zerith.py")
+    stages = train.curriculum(budget=1000, steps=400, stages=4)
+    assert stages == [(0.0, 100), (0.25, 100), (0.5, 100), (0.75, 100), (1.0, 600)]
+    assert train.curriculum(budget=1000, steps=0, stages=4) == [(1.0, 1000)]
+    # A resumed run continues where it stopped.
+    assert train.curriculum(budget=500, steps=400, stages=4, start=250) == [
+        (0.5, 50),
+        (0.75, 100),
+        (1.0, 350),
+    ]
+    assert train.curriculum(budget=100, steps=400, stages=4, start=900) == [(1.0, 100)]
+
+
+# ------------------------------------------------------------------------------------- gait measures
+def _contacts(left_stance: np.ndarray, right_stance: np.ndarray) -> np.ndarray:
+    return np.stack([left_stance, right_stance], axis=1)
+
+
+def test_gait_measures_tell_walking_from_hopping_limping_and_standing() -> None:
+    gait_measures = load_script("benchmarks/eval_agents.py").gait_measures
+    phase = (np.arange(350) % 35) / 35  # ten 0.7-s cycles at 50 Hz
+    walk = _contacts(phase < 0.55, (phase + 0.5) % 1 < 0.55)
+    rate, alternation, single = gait_measures(walk)
+    assert rate == pytest.approx(20 / 7.0)  # two steps per cycle
+    assert alternation == 1.0
+    assert single == pytest.approx(np.mean(walk.sum(axis=1) == 1))
+    hop = _contacts(phase < 0.55, phase < 0.55)
+    assert gait_measures(hop)[1] == 0.0 and gait_measures(hop)[2] == 0.0
+    limp = _contacts(phase < 0.55, np.ones(350, dtype=bool))
+    assert gait_measures(limp)[0] == pytest.approx(10 / 7.0) and gait_measures(limp)[1] == 0.0
+    stand = np.ones((350, 2), dtype=bool)
+    assert gait_measures(stand) == (0.0, 0.0, 0.0)
+    chatter = _contacts(np.arange(350) % 4 != 0, np.ones(350, dtype=bool))  # one-step losses of contact
+    assert gait_measures(chatter)[0] == 0.0
