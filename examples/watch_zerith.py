@@ -1,14 +1,17 @@
 """Watch a trained Zerith-1 agent walk, record it, and print its survival and velocity tracking.
 
-    python examples/watch_zerith.py                                        # shipped HuRi agent, 0.5 m/s
-    python examples/watch_zerith.py trained_agents/huri-baseline/Zerith1-v0_1 --vx 1.0
+    python examples/watch_zerith.py                                        # the walking agent, 0.5 m/s
+    python examples/watch_zerith.py trained_agents/huri/Zerith1-v0_1 --vx 1.0
     python examples/watch_zerith.py --scenario sudden-centroid --episodes 5
     MUJOCO_GL=egl python examples/watch_zerith.py --video videos/       # headless: an mp4 per episode
     python examples/watch_zerith.py --render                               # a MuJoCo window
 
-The agent is a run folder in RL Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`):
-`Zerith1-v0.zip` and `Zerith1-v0/vecnormalize.pkl`. The policy is deterministic. Each episode prints its
-length, whether the robot fell, its mean forward velocity and its mean forward-velocity error.
+The default agent is the shipped PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`), the one
+that walks (docs/training.md); the shipped HuRi agent steps in place. An agent is a run folder in RL
+Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`): `Zerith1-v0.zip` and
+`Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes nothing, so its
+episodes are all the same). Each episode prints its length, whether the robot fell, its mean forward
+velocity and its mean forward-velocity error.
 `benchmarks/eval_agents.py` evaluates agents on many episodes and every scenario.
 """
 
@@ -27,7 +30,7 @@ from sb3_huri import HuRiPPO
 from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
 
 ENV_ID = "Zerith1-v0"
-DEFAULT_AGENT = Path(__file__).resolve().parent.parent / "trained_agents" / "huri" / f"{ENV_ID}_1"
+DEFAULT_AGENT = Path(__file__).resolve().parent.parent / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1"
 _BASE_VELOCITY = layout_slices(CRITIC_LAYOUT)["base_linear_velocity"]
 
 
