@@ -4,7 +4,7 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import torch  # noqa: E402
+import torch
 
 # Tests run in parallel workers on small machines: one intra-op thread each avoids oversubscription.
 torch.set_num_threads(1)
