@@ -1,13 +1,14 @@
-"""Watch a trained Zerith-1 agent walk, record it, and print its survival and velocity tracking.
+"""Watch trained Zerith-1 agents walk, record them, and print their survival and velocity tracking.
 
-    python examples/watch_zerith.py                                        # the walking agent, 0.5 m/s
-    python examples/watch_zerith.py trained_agents/huri/Zerith1-v0_1 --vx 1.0
+    python examples/watch_zerith.py                                        # both shipped agents, 0.5 m/s
+    python examples/watch_zerith.py trained_agents/huri-baseline/Zerith1-v0_1 --vx 1.0
     python examples/watch_zerith.py --scenario sudden-centroid --episodes 5
     MUJOCO_GL=egl python examples/watch_zerith.py --video videos/       # headless: an mp4 per episode
     python examples/watch_zerith.py --render                               # a MuJoCo window
 
-The default agent is the shipped PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`), the one
-that walks (docs/training.md); the shipped HuRi agent steps in place. An agent is a run folder in RL
+By default both shipped agents run, one after the other: HuRi (`trained_agents/huri/Zerith1-v0_1`), which
+keeps its balance but still steps nearly in place, and the PPO baseline trained with the same preset
+(`trained_agents/huri-baseline/Zerith1-v0_1`), which walks (docs/training.md). An agent is a run folder in RL
 Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`): `Zerith1-v0.zip` and
 `Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes nothing, so its
 episodes are all the same). Each episode prints its length, whether the robot fell, its mean forward
@@ -30,7 +31,8 @@ from sb3_huri import HuRiPPO
 from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
 
 ENV_ID = "Zerith1-v0"
-DEFAULT_AGENT = Path(__file__).resolve().parent.parent / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1"
+SHIPPED = Path(__file__).resolve().parent.parent / "trained_agents"
+DEFAULT_AGENTS = [SHIPPED / "huri" / f"{ENV_ID}_1", SHIPPED / "huri-baseline" / f"{ENV_ID}_1"]
 _BASE_VELOCITY = layout_slices(CRITIC_LAYOUT)["base_linear_velocity"]
 
 
@@ -38,7 +40,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("agent", type=Path, nargs="?", default=DEFAULT_AGENT, help="run folder")
+    parser.add_argument(
+        "agents", type=Path, nargs="*", default=DEFAULT_AGENTS, help="run folders (default: the shipped ones)"
+    )
     parser.add_argument("--scenario", default="nominal", choices=list(zerith_gym.SCENARIOS))
     parser.add_argument(
         "--vx", type=float, default=None, help="forward command (m/s); default: 0.5 on nominal"
@@ -46,23 +50,39 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
     output = parser.add_mutually_exclusive_group()
-    output.add_argument("--video", type=Path, default=None, help="folder for an mp4 per episode")
+    output.add_argument(
+        "--video", type=Path, default=None, help="folder for an mp4 per episode, a subfolder per method"
+    )
     output.add_argument("--render", action="store_true", help="open a MuJoCo viewer window")
     args = parser.parse_args()
     th.set_num_threads(1)
 
     vx = args.vx if args.vx is not None else (0.5 if args.scenario in ("train", "nominal") else None)
     command = None if vx is None else (vx, 0.0, 0.0)
+    for agent in args.agents:
+        model_path = agent / f"{ENV_ID}.zip"
+        if not model_path.is_file():
+            parser.error(f"{model_path} not found: an agent is a run folder holding {ENV_ID}.zip")
+        watch(agent, command, args)
+
+
+def watch(agent: Path, command: tuple[float, float, float] | None, args: argparse.Namespace) -> None:
+    """Run one agent for ``args.episodes`` episodes and print what it did."""
     render_mode = "human" if args.render else "rgb_array" if args.video else None
     env = gym.make(ENV_ID, scenario=args.scenario, command=command, render_mode=render_mode)
     if args.video:
         env = gym.wrappers.RecordVideo(
-            env, str(args.video), episode_trigger=lambda _: True, disable_logger=True
+            env,
+            str(args.video / agent.parent.name),
+            name_prefix=args.scenario,
+            episode_trigger=lambda _: True,
+            disable_logger=True,
         )
-    model = HuRiPPO.load(args.agent / f"{ENV_ID}.zip", device="cpu")
-    stats = args.agent / ENV_ID / "vecnormalize.pkl"
+    model = HuRiPPO.load(agent / f"{ENV_ID}.zip", device="cpu")
+    stats = agent / ENV_ID / "vecnormalize.pkl"
     normalizer = VecNormalize.load(str(stats), zerith_gym.make_vec_env(1)) if stats.exists() else None
 
+    print(f"agent {agent} ({model.variant}), scenario {args.scenario}")
     survived = 0
     for episode in range(args.episodes):
         obs, info = env.reset(seed=args.seed + episode)
@@ -78,10 +98,10 @@ def main() -> None:
         mean_vx = float(np.mean(velocities))
         error = float(np.mean(np.abs(np.asarray(velocities) - target)))
         print(
-            f"episode {episode}: {len(velocities) * 0.02:5.2f} s, {'fell' if fell else 'no fall'}, "
+            f"  episode {episode}: {len(velocities) * 0.02:5.2f} s, {'fell' if fell else 'no fall'}, "
             f"command {target:.2f} m/s, mean vx {mean_vx:.2f} m/s, mean |vx error| {error:.3f} m/s"
         )
-    print(f"{survived}/{args.episodes} episodes without a fall ({args.scenario}, agent {args.agent})")
+    print(f"  {survived}/{args.episodes} episodes without a fall")
     env.close()
 
 
