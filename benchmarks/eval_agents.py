@@ -33,6 +33,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.zoo import load_run
 from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
 from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import SCENARIOS
@@ -67,16 +68,6 @@ class CaseResult:
     steps_per_s: float
     alternation: float
     single_support: float
-
-
-def load_agent(folder: Path) -> tuple[HuRiPPO, VecNormalize | None]:
-    """The model of a run folder and its observation normalizer (None if the run used none)."""
-    model = HuRiPPO.load(folder / f"{ENV_ID}.zip", device="cpu")
-    stats = folder / ENV_ID / "vecnormalize.pkl"
-    if not stats.exists():
-        return model, None
-    dummy = zerith_gym.make_vec_env(1)
-    return model, VecNormalize.load(str(stats), dummy)
 
 
 def parse_case(case: str) -> tuple[str, tuple[float, float, float] | None]:
@@ -183,7 +174,7 @@ def main() -> None:
     columns = ("survive", "vx_err", "vx", "lin_err", "yaw_err", "steps/s", "alt", "1-supp")
     print(f"{'agent':<28} {'case':<22} " + " ".join(f"{c:>7}" for c in columns))
     for folder in args.agents:
-        model, normalizer = load_agent(folder)
+        model, normalizer = load_run(folder, ENV_ID)
         agent = f"{folder.parent.name}/{folder.name}"
         for case, scenario, command in cases:
             metrics = evaluate(model, normalizer, scenario, command, args.episodes, args.seed)

@@ -24,10 +24,9 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import torch as th
-from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
-from sb3_huri import HuRiPPO
+from sb3_huri.zoo import load_run
 from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
 
 ENV_ID = "Zerith1-v0"
@@ -78,9 +77,7 @@ def watch(agent: Path, command: tuple[float, float, float] | None, args: argpars
             episode_trigger=lambda _: True,
             disable_logger=True,
         )
-    model = HuRiPPO.load(agent / f"{ENV_ID}.zip", device="cpu")
-    stats = agent / ENV_ID / "vecnormalize.pkl"
-    normalizer = VecNormalize.load(str(stats), zerith_gym.make_vec_env(1)) if stats.exists() else None
+    model, normalizer = load_run(agent, ENV_ID)
 
     print(f"agent {agent} ({model.variant}), scenario {args.scenario}")
     survived = 0

@@ -125,3 +125,10 @@ def test_gait_measures_tell_walking_from_hopping_limping_and_standing() -> None:
     assert gait_measures(stand) == (0.0, 0.0, 0.0)
     chatter = _contacts(np.arange(350) % 4 != 0, np.ones(350, dtype=bool))  # one-step losses of contact
     assert gait_measures(chatter)[0] == 0.0
+
+
+def test_load_run_names_the_missing_model(tmp_path):
+    from sb3_huri.zoo import load_run
+
+    with pytest.raises(FileNotFoundError, match=r"Zerith1-v0\.zip not found"):
+        load_run(tmp_path, "Zerith1-v0")

@@ -109,3 +109,26 @@ def method_class(variant: str) -> type:
         (HuRiPPO,),
         {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(variant={variant!r})."},
     )
+
+
+def load_run(folder: str | os.PathLike, env_id: str) -> tuple[Any, Any | None]:
+    """The model of a run folder in RL Zoo's layout and its observation normalizer (``None`` if it used none).
+
+    A run folder holds ``<env_id>.zip`` and, when the run normalized observations,
+    ``<env_id>/vecnormalize.pkl`` (as ``rl_zoo3 train`` and ``examples/train_zerith.py`` write them).
+    The model is loaded on the CPU.
+    """
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from sb3_huri import HuRiPPO
+
+    folder = Path(folder)
+    model_path = folder / f"{env_id}.zip"
+    if not model_path.is_file():
+        raise FileNotFoundError(f"{model_path} not found: a run folder holds {env_id}.zip")
+    model = HuRiPPO.load(model_path, device="cpu")
+    stats = folder / env_id / "vecnormalize.pkl"
+    if not stats.is_file():
+        return model, None
+    return model, VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
