@@ -8,14 +8,17 @@ For each configuration it prints control steps per second (robot-steps/s for a b
 - the env: `Zerith1Env.step` (unwrapped and from `gym.make`) or `ZerithVecEnv.step` with those actions,
   resets included;
 
-and the ratio env / raw physics. With `--rollout`, it also times raw physics through MuJoCo's threaded
-`mujoco.rollout` (the alternative to the loop; not used by the env, see docs/performance.md). With
-`--stages`, it also splits a batch's step into its stages (timers around the batch's methods and around
-each `mj_step` call), in microseconds per robot-step.
+and the ratio env / raw physics. With `--physics-threads K` (K > 1) it also times both with the robots
+split into K groups stepped in parallel threads (the env's `physics_threads=K`; MuJoCo releases the GIL
+in `mj_step`), and gives the threaded env's ratio to the threaded raw loop as well. With `--rollout`,
+it also times raw physics through MuJoCo's threaded `mujoco.rollout` (the alternative to the loop; not
+used by the env, see docs/performance.md). With `--stages`, it also splits a batch's step into its
+stages (timers around the batch's methods and around each `mj_step` call), in microseconds per robot-step.
 
     python benchmarks/bench_env.py                          # single env, and batches of 16 and 64
     python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout --action-scale 0.2
     python benchmarks/bench_env.py --steps 0 --num-envs 32 --stages
+    python benchmarks/bench_env.py --steps 0 --num-envs 32 --physics-threads 2
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import argparse
 import time
 from collections import defaultdict
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
 import gymnasium as gym
@@ -43,8 +47,11 @@ def random_actions(steps: int, num_robots: int, scale: float, seed: int = 0) -> 
     return rng.uniform(-scale, scale, size=(steps, num_robots, robot.NUM_JOINTS)).astype(np.float32)
 
 
-def physics_rate(sim: Simulator, actions: np.ndarray) -> float:
-    """Robot-steps/s of raw `mj_step(nstep=decimation)` over the simulator's robots, from their state."""
+def physics_rate(sim: Simulator, actions: np.ndarray, threads: int = 1) -> float:
+    """Robot-steps/s of raw `mj_step(nstep=decimation)` over the simulator's robots, from their state.
+
+    With `threads` > 1 the robots are split into that many groups, stepped in parallel as the env does.
+    """
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     pairs = list(zip(sim.models, sim.datas, strict=True))
     starts = []
@@ -53,14 +60,24 @@ def physics_rate(sim: Simulator, actions: np.ndarray) -> float:
         mujoco.mj_getState(model, data, state, spec)
         starts.append(state)
     targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions.astype(np.float64)
-    start = time.perf_counter()
-    for step_targets in targets:
-        for (model, data), target, state in zip(pairs, step_targets, starts, strict=True):
-            data.ctrl[:] = target
+    groups = [group.tolist() for group in np.array_split(np.arange(len(pairs)), threads)]
+
+    def step_group(group: list[int], step_targets: np.ndarray) -> None:
+        for i in group:
+            model, data = pairs[i]
+            data.ctrl[:] = step_targets[i]
             mujoco.mj_step(model, data, nstep=robot.DECIMATION)
             if data.qpos[2] < FALL_HEIGHT:
-                mujoco.mj_setState(model, data, state, spec)
-    return targets.shape[0] * targets.shape[1] / (time.perf_counter() - start)
+                mujoco.mj_setState(model, data, starts[i], spec)
+
+    with ThreadPoolExecutor(max(threads - 1, 1)) as pool:
+        start = time.perf_counter()
+        for step_targets in targets:
+            others = [pool.submit(step_group, group, step_targets) for group in groups[1:]]
+            step_group(groups[0], step_targets)
+            for future in others:
+                future.result()
+        return targets.shape[0] * targets.shape[1] / (time.perf_counter() - start)
 
 
 def rollout_rate(sim: Simulator, actions: np.ndarray, nthread: int) -> float:
@@ -165,28 +182,38 @@ def report_stages(num: int, env: zerith_gym.ZerithVecEnv, actions: np.ndarray, r
         print(f"  {stage:40s} {np.median(values):7.1f}")
 
 
-def interleaved(measures: dict[str, Callable[[np.ndarray], float]], actions: np.ndarray, rounds: int) -> dict:
+def interleaved(
+    measures: dict[str, Callable[[np.ndarray], float]],
+    actions: np.ndarray,
+    rounds: int,
+    references: dict[str, str] | None = None,
+) -> dict:
     """Median rate of each measure over `rounds` rounds, the measures taking turns within a round.
 
     The machine is shared: taking turns exposes every measure to the same load, and the median of the
     per-round ratios to the first measure (raw physics) is the figure that varies least between runs.
+    `references` names, for some measures, a second measure to give the median per-round ratio to.
     """
     chunks = np.array_split(actions, rounds)
     rates = {name: [] for name in measures}
     for chunk in chunks:
         for name, measure in measures.items():
             rates[name].append(measure(chunk))
-    reference = np.array(rates[next(iter(measures))])
-    return {
-        name: (float(np.median(values)), float(np.median(np.array(values) / reference)))
-        for name, values in rates.items()
-    }
+    rates = {name: np.array(values) for name, values in rates.items()}
+    reference = rates[next(iter(measures))]
+    results = {}
+    for name, values in rates.items():
+        other = (references or {}).get(name)
+        second = (other, float(np.median(values / rates[other]))) if other else None
+        results[name] = (float(np.median(values)), float(np.median(values / reference)), second)
+    return results
 
 
 def report(title: str, results: dict) -> None:
-    print(f"{title:36s} steps/s   ratio to raw physics (median of rounds)")
-    for name, (rate, ratio) in results.items():
-        print(f"  {name:34s} {rate:9.0f}   {ratio:.2f}")
+    print(f"{title:44s} steps/s   ratio to raw physics (median of rounds)")
+    for name, (rate, ratio, second) in results.items():
+        extra = f"   ({second[1]:.2f} of {second[0]})" if second else ""
+        print(f"  {name:42s} {rate:9.0f}   {ratio:.2f}{extra}")
 
 
 def main() -> None:
@@ -199,6 +226,9 @@ def main() -> None:
     parser.add_argument("--action-scale", type=float, default=1.0, help="actions uniform in +-this")
     parser.add_argument("--rollout", action="store_true", help="also time raw physics via mujoco.rollout")
     parser.add_argument("--stages", action="store_true", help="also split a batch's step into its stages")
+    parser.add_argument(
+        "--physics-threads", type=int, default=1, help="also time env and raw physics with this many threads"
+    )
     args = parser.parse_args()
     print(
         f"scenario {args.scenario}, actions uniform in +-{args.action_scale}, "
@@ -228,12 +258,22 @@ def main() -> None:
             "raw mj_step loop": lambda a, v=venv: physics_rate(v.robots.sim, a),
             "ZerithVecEnv.step": lambda a, v=venv: vec_env_rate(v, a),
         }
+        references = {}
+        if args.physics_threads > 1:
+            k = args.physics_threads
+            threaded = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario, physics_threads=k)
+            threaded.reset()
+            vec_env_rate(threaded, actions[:10])
+            raw_name, env_name = f"raw mj_step loop, {k} threads", f"ZerithVecEnv.step, {k} physics threads"
+            measures[raw_name] = lambda a, v=threaded, k=k: physics_rate(v.robots.sim, a, k)
+            measures[env_name] = lambda a, v=threaded: vec_env_rate(v, a)
+            references[env_name] = raw_name
         if args.rollout:
             for nthread in (0, 2):
                 measures[f"raw mujoco.rollout nthread={nthread}"] = lambda a, v=venv, k=nthread: rollout_rate(
                     v.robots.sim, a, k
                 )
-        report(f"batch of {num} (robot-steps/s)", interleaved(measures, actions, args.rounds))
+        report(f"batch of {num} (robot-steps/s)", interleaved(measures, actions, args.rounds, references))
         if args.stages:
             report_stages(num, venv, actions, args.rounds)
 

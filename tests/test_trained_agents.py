@@ -22,8 +22,9 @@ from zerith_gym.scenarios import SCENARIOS
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
-AGENTS = {"huri": "huri", "huri-baseline": "baseline"}
-"""Shipped RL Zoo algorithm folder -> the HuRiPPO variant it must hold."""
+AGENTS = {"huri": "huri", "ppo": "baseline"}
+"""Shipped RL Zoo algorithm folder -> the HuRiPPO variant it must hold (the baseline is PPO exactly, so it
+is shipped where RL Zoo's own `ppo` looks for it)."""
 
 
 def load_script(relative: str):
@@ -70,6 +71,21 @@ def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str) -> None:
     )
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
     assert f"Loading trained_agents/{algo}/{ENV_ID}_1/{ENV_ID}.zip" in result.stdout
+
+
+def test_sb3_ppo_loads_the_shipped_baseline_and_acts_as_huri_ppo_does() -> None:
+    from stable_baselines3 import PPO
+
+    path = REPO / "trained_agents" / "ppo" / f"{ENV_ID}_1" / f"{ENV_ID}.zip"
+    ppo, huri = PPO.load(path, device="cpu"), HuRiPPO.load(path, device="cpu")
+    obs = zerith_gym.make_vec_env(4, seed=0, scenario="train").reset()
+    obs = {key: value + np.random.default_rng(0).normal(size=value.shape) for key, value in obs.items()}
+    expected = huri.predict(obs, deterministic=True)[0]
+    np.testing.assert_array_equal(ppo.predict(obs, deterministic=True)[0], expected)
+    observation = huri.policy.obs_to_tensor(obs)[0]
+    np.testing.assert_array_equal(
+        ppo.policy.predict_values(observation).detach(), huri.policy.predict_values(observation).detach()
+    )
 
 
 # ---------------------------------------------------------------------------- training curriculum

@@ -26,10 +26,12 @@ def _obs_equal(batched, i: int | None, single) -> None:
         np.testing.assert_array_equal(batched if i is None else batched[i], single)
 
 
-def _compare_with_single_envs(seed: int, steps: int, actions_of, **env_kwargs) -> dict[str, int]:
+def _compare_with_single_envs(
+    seed: int, steps: int, actions_of, physics_threads: int = 1, **env_kwargs
+) -> dict[str, int]:
     """Step a ZerithVecEnv and single envs seeded seed + i side by side; assert every transition is equal."""
     num = 3
-    venv = zerith_gym.make_vec_env(num, seed=seed, **env_kwargs)
+    venv = zerith_gym.make_vec_env(num, seed=seed, physics_threads=physics_threads, **env_kwargs)
     envs = [Zerith1Env(**env_kwargs) for _ in range(num)]
     obs = venv.reset()
     for i, env in enumerate(envs):
@@ -58,11 +60,14 @@ def _compare_with_single_envs(seed: int, steps: int, actions_of, **env_kwargs) -
             else:
                 assert "terminal_observation" not in infos[i] and "episode" not in infos[i]
             _obs_equal(obs, i, single_obs)
+    venv.close()
     return counts
 
 
-def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs():
-    # Robot 0 holds still and times out after 60 steps; robots 1 and 2 act at random and fall.
+@pytest.mark.parametrize("physics_threads", [1, 2, 3])
+def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physics_threads):
+    # Robot 0 holds still and times out after 60 steps; robots 1 and 2 act at random and fall. With 2 or 3
+    # physics threads the robots are stepped in parallel groups, which must not change any transition.
     rng = np.random.default_rng(0)
 
     def actions_of(t: int) -> np.ndarray:
@@ -70,7 +75,9 @@ def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs():
         actions[0] = 0.0
         return actions
 
-    counts = _compare_with_single_envs(7, 250, actions_of, scenario="train", episode_steps=60)
+    counts = _compare_with_single_envs(
+        7, 250, actions_of, physics_threads, scenario="train", episode_steps=60
+    )
     assert counts["falls"] >= 4 and counts["time_outs"] >= 4
 
 
@@ -146,6 +153,25 @@ def test_seeding_options_attributes_and_bad_input():
         ZerithVecEnv(0)
     with pytest.raises(ValueError, match="episode_steps"):
         ZerithVecEnv(2, episode_steps=0)
+    with pytest.raises(ValueError, match="physics threads must be a positive integer"):
+        ZerithVecEnv(2, physics_threads=0)
+
+
+def test_closing_stops_the_physics_threads_and_the_env_still_steps():
+    venv = ZerithVecEnv(4, scenario="nominal", obs_mode="policy", physics_threads=2)
+    venv.seed(3)
+    venv.reset()
+    actions = np.zeros((4, 12), dtype=np.float32)
+    threaded = venv.step(actions)[0]
+    pool = venv.robots.sim._pool
+    venv.close()
+    assert pool is not None and pool._shutdown and venv.robots.sim._pool is None
+    after_close = venv.step(actions)[0]
+    reference = ZerithVecEnv(4, scenario="nominal", obs_mode="policy")
+    reference.seed(3)
+    reference.reset()
+    np.testing.assert_array_equal(reference.step(actions)[0], threaded)
+    np.testing.assert_array_equal(reference.step(actions)[0], after_close)
 
 
 def test_ppo_with_vec_normalize_and_huri_learn_on_the_batched_env():

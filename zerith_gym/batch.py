@@ -84,6 +84,7 @@ class ZerithBatch:
         reward_weights: Mapping[str, float] | None = None,
         terrain_seed: int = 0,
         episode_steps: int = EPISODE_STEPS,
+        physics_threads: int = 1,
     ) -> None:
         if not isinstance(num_robots, int | np.integer) or num_robots < 1:
             raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
@@ -95,7 +96,7 @@ class ZerithBatch:
         elif self.scenario.command is not None:
             command = self.scenario.command
         self.terrain = Terrain(self.scenario.terrain, seed=terrain_seed)
-        self.sim = Simulator(num_robots, self.terrain, self.scenario.force.target)
+        self.sim = Simulator(num_robots, self.terrain, self.scenario.force.target, physics_threads)
         model = self.sim.models[0]
         self.task = ZerithTask(
             num_robots,

@@ -1,9 +1,13 @@
-"""MuJoCo simulation of n Zerith-1 robots: one model and data per robot, stepped one after another.
+"""MuJoCo simulation of n Zerith-1 robots: one model and data per robot.
 
 Each robot has its own `MjModel` copy because domain randomization edits model fields (masses, friction,
 gains) per robot. A control step of robot i is a few `mj_step(model, data, nstep)` calls in C, one per
 run of sub-steps that share a delayed action (usually one call): no Python per physics sub-step.
 The single env is this with n = 1, so single and batched envs share every line of physics code.
+
+With `threads > 1` the robots are split into that many contiguous groups stepped by a thread pool. MuJoCo's
+Python bindings release the GIL inside `mj_step`, so the groups' physics runs in parallel; each robot still
+gets exactly the same calls on its own model and data, so the results do not depend on the thread count.
 
 (MuJoCo's threaded `mujoco.rollout` was measured against this loop: see docs/performance.md for why the
 loop is used: rollouts restart from a state vector without the solver's warm start, and MuJoCo's
@@ -13,6 +17,7 @@ per-robot bad-state warnings are not visible through them.)
 from __future__ import annotations
 
 import copy
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import mujoco
@@ -64,9 +69,14 @@ class _Robot(NamedTuple):
 
 
 class Simulator:
-    """The physics of `num_robots` robots on one terrain, with forces on the bodies of `force_target`."""
+    """The physics of `num_robots` robots on one terrain, with forces on the bodies of `force_target`.
 
-    def __init__(self, num_robots: int, terrain: Terrain, force_target: str) -> None:
+    `threads`: how many threads step the robots' physics (at most one per robot).
+    """
+
+    def __init__(self, num_robots: int, terrain: Terrain, force_target: str, threads: int = 1) -> None:
+        if not isinstance(threads, int | np.integer) or threads < 1:
+            raise ValueError(f"the number of physics threads must be a positive integer, got {threads!r}")
         model = build_model(terrain)
         self.terrain = terrain
         self.models = [model] + [copy.copy(model) for _ in range(num_robots - 1)]
@@ -78,6 +88,10 @@ class Simulator:
         """Every robot's sensor readings after the last reset or step, (num_robots, nsensordata)."""
         self._qvel = np.zeros((num_robots, model.nv))
         self._segments: list[Segments] = [[(0, robot.DECIMATION)]] * num_robots
+        self._warned = np.zeros(num_robots, dtype=bool)
+        groups = min(int(threads), num_robots)
+        self._groups = [group.tolist() for group in np.array_split(np.arange(num_robots), groups)]
+        self._pool = ThreadPoolExecutor(groups - 1, "zerith-physics") if groups > 1 else None
 
     def reset(self, ids: np.ndarray, domain: DomainParams, qpos: np.ndarray, lags: np.ndarray) -> None:
         """Restart robots `ids` with their domain parameters, initial positions and lags (row k: ids[k])."""
@@ -97,19 +111,38 @@ class Simulator:
         MuJoCo raised a bad-state warning during the step (it then resets the state) or if it ends with
         non-finite velocities.
         """
-        qvel, sensordata, warned = self._qvel, self.sensordata, []
-        for i, (sim, segments, robot_targets, robot_force) in enumerate(
-            zip(self._robots, self._segments, targets, force, strict=True)
-        ):
+        inputs = (targets, force, kicks)
+        if self._pool is None:
+            self._step_robots(self._groups[0], *inputs)
+        else:  # the calling thread steps the first group while the pool steps the others
+            others = [self._pool.submit(self._step_robots, group, *inputs) for group in self._groups[1:]]
+            self._step_robots(self._groups[0], *inputs)
+            for future in others:
+                future.result()
+        return self._warned | ~np.isfinite(self._qvel).all(axis=1)
+
+    def close(self) -> None:
+        """Stop the physics threads, if any."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+            self._groups = [[i for group in self._groups for i in group]]
+
+    def _step_robots(
+        self, ids: list[int], targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None
+    ) -> None:
+        """Step robots `ids`, writing their velocities, sensors and warning flags into the batch arrays."""
+        for i in ids:
+            sim = self._robots[i]
             for row in sim.force_rows:
-                row[:] = robot_force
+                row[:] = force[i]
             if kicks is not None:
                 sim.qvel[:2] += kicks[i]
             warnings = sim.bad_state_warnings.tolist()
-            for lag, count in segments:
+            robot_targets = targets[i]
+            for lag, count in self._segments[i]:
                 sim.ctrl[:] = robot_targets[lag]
                 mujoco.mj_step(sim.model, sim.data, nstep=count)
-            warned.append(sim.bad_state_warnings.tolist() != warnings)
-            qvel[i] = sim.qvel
-            sensordata[i] = sim.sensordata
-        return np.array(warned) | ~np.isfinite(qvel).all(axis=1)
+            self._warned[i] = sim.bad_state_warnings.tolist() != warnings
+            self._qvel[i] = sim.qvel
+            self.sensordata[i] = sim.sensordata

@@ -38,6 +38,9 @@ from zerith_gym.task import EPISODE_STEPS
 class ZerithVecEnv(VecEnv):
     """`num_envs` Zerith1-v0 robots stepped together; the other arguments are those of `Zerith1Env`.
 
+    `physics_threads`: threads stepping the robots' physics in parallel (MuJoCo releases the GIL in
+    `mj_step`); the transitions are the same for any number. More than one pays where cores are free while
+    the env steps, e.g. during rollout collection (docs/performance.md).
     Rendering is not supported (use the single env for videos).
     """
 
@@ -50,9 +53,12 @@ class ZerithVecEnv(VecEnv):
         reward_weights: Mapping[str, float] | None = None,
         terrain_seed: int = 0,
         episode_steps: int = EPISODE_STEPS,
+        physics_threads: int = 1,
     ) -> None:
         space = observation_space(obs_mode)
-        self.robots = ZerithBatch(num_envs, scenario, command, reward_weights, terrain_seed, episode_steps)
+        self.robots = ZerithBatch(
+            num_envs, scenario, command, reward_weights, terrain_seed, episode_steps, physics_threads
+        )
         self.scenario, self.task = self.robots.scenario, self.robots.task
         self.obs_mode = obs_mode
         self.render_mode = None
@@ -124,7 +130,8 @@ class ZerithVecEnv(VecEnv):
         return self._format(policy, critic), out.reward.astype(np.float32), dones, infos
 
     def close(self) -> None:
-        """Nothing to release: models and data are freed with the object."""
+        """Stop the physics threads, if any (models and data are freed with the object)."""
+        self.robots.sim.close()
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [None] * self.num_envs
@@ -164,7 +171,7 @@ def make_vec_env(n_envs: int, seed: int | None = None, **env_kwargs: Any) -> Zer
     """A `ZerithVecEnv` of `n_envs` robots; robot i is seeded with `seed + i` at the first reset.
 
     `env_kwargs` are those of `Zerith1Env` (scenario, obs_mode, command, reward_weights, terrain_seed,
-    episode_steps).
+    episode_steps) and `physics_threads` (see `ZerithVecEnv`).
     """
     env = ZerithVecEnv(n_envs, **env_kwargs)
     if seed is not None:
