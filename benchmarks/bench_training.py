@@ -8,6 +8,10 @@ against updating the networks.
 
     python benchmarks/bench_training.py                                  # 16 and 32 envs, both networks
     python benchmarks/bench_training.py --num-envs 32 --nets 512,256,128 --iterations 5
+    python benchmarks/bench_training.py --num-envs 32 --nets 256,128,64 --physics-threads 1 2
+
+`--physics-threads` (batched env only) steps the robots' physics in that many threads while the policy
+waits for them; several values are measured one after another.
 """
 
 from __future__ import annotations
@@ -48,9 +52,9 @@ class RolloutTimer(BaseCallback):
         return True
 
 
-def make_env(kind: str, num_envs: int, seed: int) -> VecEnv:
+def make_env(kind: str, num_envs: int, seed: int, physics_threads: int = 1) -> VecEnv:
     if kind == "batched":
-        env = zerith_gym.make_vec_env(num_envs, seed=seed)
+        env = zerith_gym.make_vec_env(num_envs, seed=seed, physics_threads=physics_threads)
     else:
         env = sb3_make_vec_env("Zerith1-v0", n_envs=num_envs, seed=seed)
     return VecNormalize(env, norm_obs=True, norm_reward=True)
@@ -65,8 +69,10 @@ def build(algo: str, env: VecEnv, net: list[int], seed: int):
     return HuRiPPO("MlpPolicy", env, variant=algo, n_minibatches=N_MINIBATCHES, **common)
 
 
-def measure(algo: str, kind: str, num_envs: int, net: list[int], iterations: int, seed: int) -> tuple:
-    env = make_env(kind, num_envs, seed)
+def measure(
+    algo: str, kind: str, num_envs: int, net: list[int], iterations: int, seed: int, physics_threads: int
+) -> tuple:
+    env = make_env(kind, num_envs, seed, physics_threads)
     model = build(algo, env, net, seed)
     per_iteration = num_envs * N_STEPS
     model.learn(per_iteration)  # warm-up: allocations, first resets
@@ -86,18 +92,25 @@ def main() -> None:
     parser.add_argument("--vec", choices=["batched", "dummy"], default="batched")
     parser.add_argument("--iterations", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (the env uses one core)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    parser.add_argument("--physics-threads", type=int, nargs="*", default=[1], help="env physics threads")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads; env: {args.vec}; n_steps {N_STEPS}")
-    print("algo                       envs  net            steps/s  collecting")
+    print("algo                       envs  net          physics threads  steps/s  collecting")
     for num_envs in args.num_envs:
         for net_text in args.nets:
             net = [int(width) for width in net_text.split(",")]
             for algo in args.algos:
-                rate, collecting = measure(algo, args.vec, num_envs, net, args.iterations, args.seed)
-                name = "SB3 PPO" if algo == "ppo" else f"HuRiPPO variant={algo}"
-                print(f"{name:26s} {num_envs:4d}  {net_text:13s} {rate:8.0f}  {collecting:9.0%}")
+                for physics_threads in args.physics_threads:
+                    rate, collecting = measure(
+                        algo, args.vec, num_envs, net, args.iterations, args.seed, physics_threads
+                    )
+                    name = "SB3 PPO" if algo == "ppo" else f"HuRiPPO variant={algo}"
+                    print(
+                        f"{name:26s} {num_envs:4d}  {net_text:13s} {physics_threads:15d} "
+                        f"{rate:8.0f}  {collecting:9.0%}"
+                    )
 
 
 if __name__ == "__main__":

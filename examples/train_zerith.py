@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -177,6 +178,12 @@ def main() -> None:
     parser.add_argument("--checkpoint-freq", type=int, default=500_000, help="env steps between checkpoints")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest for small nets)")
     parser.add_argument(
+        "--physics-threads",
+        type=int,
+        default=min(2, os.cpu_count() or 1),
+        help="threads stepping the robots' physics while the policy waits (same results; default 2)",
+    )
+    parser.add_argument(
         "--curriculum-steps",
         type=int,
         default=0,
@@ -196,7 +203,11 @@ def main() -> None:
 
     def make_env(scale: float, previous: VecNormalize | None) -> VecEnv:
         env = zerith_gym.make_vec_env(
-            int(preset["n_envs"]), seed=args.seed, scenario=scaled_scenario(scenario, scale), **env_kwargs
+            int(preset["n_envs"]),
+            seed=args.seed,
+            scenario=scaled_scenario(scenario, scale),
+            physics_threads=args.physics_threads,
+            **env_kwargs,
         )
         if norm is None:
             return env

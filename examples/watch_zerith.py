@@ -6,13 +6,12 @@
     MUJOCO_GL=egl python examples/watch_zerith.py --video videos/       # headless: an mp4 per episode
     python examples/watch_zerith.py --render                               # a MuJoCo window
 
-By default both shipped agents run, one after the other: HuRi (`trained_agents/huri/Zerith1-v0_1`), which
-keeps its balance but still steps nearly in place, and the PPO baseline trained with the same preset
-(`trained_agents/ppo/Zerith1-v0_1`), which walks (docs/training.md). An agent is a run folder in RL
-Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`): `Zerith1-v0.zip` and
-`Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes nothing, so its
-episodes are all the same). Each episode prints its length, whether the robot fell, its mean forward
-velocity and its mean forward-velocity error.
+By default both shipped agents run, one after the other: HuRi (`trained_agents/huri/Zerith1-v0_1`) and the
+PPO baseline (`trained_agents/ppo/Zerith1-v0_1`); both walk at the 0.5 m/s command (docs/training.md).
+An agent is a run folder in RL Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`):
+`Zerith1-v0.zip` and `Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes
+nothing, so its episodes are all the same). Each episode prints its length, whether the robot fell, its
+mean forward velocity and its mean forward-velocity error.
 `benchmarks/eval_agents.py` evaluates agents on many episodes and every scenario.
 """
 
