@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
@@ -232,4 +233,15 @@ def test_rgb_array_rendering_follows_the_robot():
     for _ in range(10):
         env.step(np.zeros(12))
     assert env.render().shape == (120, 160, 3)
+
+    # Move the robot 5.6 m away: a camera that follows it still sees it (the white robot's pixels; the
+    # white horizon line, also counted, is about half of them and stays in any camera's view).
+    def white_pixels(frame: np.ndarray) -> int:
+        return int((frame.min(axis=2) > 170).sum())
+
+    before = white_pixels(env.render())
+    model, data = env.robots.sim.models[0], env.robots.sim.datas[0]
+    data.qpos[:2] += 4.0
+    mujoco.mj_forward(model, data)
+    assert white_pixels(env.render()) > 0.9 * before
     env.close()

@@ -6,7 +6,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 from zerith_gym import robot
@@ -146,14 +145,10 @@ class Zerith1Env(gym.Env):
         if self._renderer is None:
             from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
 
-            camera = {
-                "type": mujoco.mjtCamera.mjCAMERA_TRACKING,
-                "trackbodyid": self.nominal.root,
-                "distance": 3.0,
-                "elevation": -15.0,
-                "azimuth": 150.0,
-            }
-            self._renderer = MujocoRenderer(self.model, self.data, camera, self.width, self.height)
+            # The model's "track" camera follows the centre of mass (gymnasium's free camera would not).
+            self._renderer = MujocoRenderer(
+                self.model, self.data, None, self.width, self.height, camera_name="track"
+            )
         return self._renderer.render(self.render_mode)
 
     def close(self) -> None:
