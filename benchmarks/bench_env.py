@@ -47,18 +47,25 @@ def random_actions(steps: int, num_robots: int, scale: float, seed: int = 0) -> 
     return rng.uniform(-scale, scale, size=(steps, num_robots, robot.NUM_JOINTS)).astype(np.float32)
 
 
+FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def physics_states(sim: Simulator) -> np.ndarray:
+    """Every robot's full physics state (num_robots, state size), to put fallen robots back."""
+    size = mujoco.mj_stateSize(sim.models[0], FULL_STATE)
+    states = np.empty((len(sim.models), size))
+    for state, model, data in zip(states, sim.models, sim.datas, strict=True):
+        mujoco.mj_getState(model, data, state, FULL_STATE)
+    return states
+
+
 def physics_rate(sim: Simulator, actions: np.ndarray, threads: int = 1) -> float:
     """Robot-steps/s of raw `mj_step(nstep=decimation)` over the simulator's robots, from their state.
 
     With `threads` > 1 the robots are split into that many groups, stepped in parallel as the env does.
     """
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     pairs = list(zip(sim.models, sim.datas, strict=True))
-    starts = []
-    for model, data in pairs:
-        state = np.empty(mujoco.mj_stateSize(model, spec))
-        mujoco.mj_getState(model, data, state, spec)
-        starts.append(state)
+    starts = physics_states(sim)
     targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions.astype(np.float64)
     groups = [group.tolist() for group in np.array_split(np.arange(len(pairs)), threads)]
 
@@ -68,7 +75,7 @@ def physics_rate(sim: Simulator, actions: np.ndarray, threads: int = 1) -> float
             data.ctrl[:] = step_targets[i]
             mujoco.mj_step(model, data, nstep=robot.DECIMATION)
             if data.qpos[2] < FALL_HEIGHT:
-                mujoco.mj_setState(model, data, starts[i], spec)
+                mujoco.mj_setState(model, data, starts[i], FULL_STATE)
 
     with ThreadPoolExecutor(max(threads - 1, 1)) as pool:
         start = time.perf_counter()
@@ -82,11 +89,8 @@ def physics_rate(sim: Simulator, actions: np.ndarray, threads: int = 1) -> float
 
 def rollout_rate(sim: Simulator, actions: np.ndarray, nthread: int) -> float:
     """Robot-steps/s of raw physics through `mujoco.rollout`: one call per control step, state carried."""
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     model = sim.models[0]
-    states = np.empty((len(sim.models), mujoco.mj_stateSize(model, spec)))
-    for i, (m, d) in enumerate(zip(sim.models, sim.datas, strict=True)):
-        mujoco.mj_getState(m, d, states[i], spec)
+    states = physics_states(sim)
     starts = states.copy()
     targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions.astype(np.float64)
     out_state = np.empty((len(sim.models), robot.DECIMATION, states.shape[1]))

@@ -79,7 +79,8 @@ def test_sb3_ppo_loads_the_shipped_baseline_and_acts_as_huri_ppo_does() -> None:
     path = REPO / "trained_agents" / "ppo" / f"{ENV_ID}_1" / f"{ENV_ID}.zip"
     ppo, huri = PPO.load(path, device="cpu"), HuRiPPO.load(path, device="cpu")
     obs = zerith_gym.make_vec_env(4, seed=0, scenario="train").reset()
-    obs = {key: value + np.random.default_rng(0).normal(size=value.shape) for key, value in obs.items()}
+    noise = np.random.default_rng(0)
+    obs = {key: value + noise.normal(size=value.shape) for key, value in obs.items()}
     expected = huri.predict(obs, deterministic=True)[0]
     np.testing.assert_array_equal(ppo.predict(obs, deterministic=True)[0], expected)
     observation = huri.policy.obs_to_tensor(obs)[0]

@@ -126,7 +126,7 @@ class Simulator:
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
-            self._groups = [[i for group in self._groups for i in group]]
+            self._groups = [list(range(len(self._robots)))]
 
     def _step_robots(
         self, ids: list[int], targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None
