@@ -474,7 +474,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         parser.exit(2, "error: the onnx package is needed to export: pip install 'sb3-huri[deploy]'\n")
     try:
         model, normalizer = load_run_for_export(args.run, args.env, normalized=not args.unnormalized)
-        export_actor(model, normalizer, args.env, args.output, source=args.run.resolve().name)
+        run = args.run.resolve()
+        export_actor(model, normalizer, args.env, args.output, source=f"{run.parent.name}/{run.name}")
     except (FileNotFoundError, ValueError) as error:
         parser.exit(2, f"error: {error}\n")
     actor = actor_of(model.policy)
