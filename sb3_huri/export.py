@@ -374,6 +374,23 @@ def export_actor(
     return proto
 
 
+def load_model(path: str | os.PathLike) -> Any:
+    """A saved on-policy model on the CPU: ``HuRiPPO`` for every HuRi method, SB3's ``PPO`` otherwise.
+
+    The saved policy class tells them apart: HuRi methods (the PPO baseline included) save a
+    ``HuRiPolicy``, runs of SB3's own ``PPO`` an ``ActorCriticPolicy``.
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from sb3_huri import HuRiPolicy, HuRiPPO
+
+    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    policy_class = (data or {}).get("policy_class")
+    algorithm = HuRiPPO if isinstance(policy_class, type) and issubclass(policy_class, HuRiPolicy) else PPO
+    return algorithm.load(path, device="cpu")
+
+
 def load_run_for_export(folder: str | os.PathLike, env_id: str, normalized: bool = True) -> tuple[Any, Any]:
     """The model and ``VecNormalize`` of an RL Zoo run folder, with errors that say what is missing.
 
@@ -385,7 +402,6 @@ def load_run_for_export(folder: str | os.PathLike, env_id: str, normalized: bool
     import gymnasium as gym
 
     import zerith_gym  # noqa: F401  (registers Zerith1-v0)
-    from sb3_huri import HuRiPPO
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -406,7 +422,7 @@ def load_run_for_export(folder: str | os.PathLike, env_id: str, normalized: bool
         )
     if not normalized and stats.is_file():
         raise ValueError(f"--unnormalized given, but the run normalized its observations ({stats} exists)")
-    model = HuRiPPO.load(model_path, device="cpu")
+    model = load_model(model_path)
     if not normalized:
         return model, None
     with open(stats, "rb") as file:
