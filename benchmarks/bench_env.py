@@ -8,9 +8,12 @@ For each configuration it prints control steps per second (robot-steps/s for a b
 - the env: `Zerith1Env.step` (unwrapped and from `gym.make`) or `ZerithVecEnv.step` with those actions,
   resets included;
 
-and the ratio env / raw physics. With `--physics-threads K` (K > 1) it also times both with the robots
-split into K groups stepped in parallel threads (the env's `physics_threads=K`; MuJoCo releases the GIL
-in `mj_step`), and gives the threaded env's ratio to the threaded raw loop as well. With `--rollout`,
+and the ratio env / raw physics. On K cores (`--physics-threads K`, default: every core) it also times raw
+physics with the robots split into K groups stepped in parallel threads (MuJoCo releases the GIL in
+`mj_step`), the env with its physics on K threads (`physics_threads=K`, the task logic on one), and the
+env with its robots split over K worker processes (`workers=K`, task logic and physics in parallel; the
+default of `make_vec_env` on this machine), and gives each of those ratios to raw physics on K threads
+too. With `--rollout`,
 it also times raw physics through MuJoCo's threaded `mujoco.rollout` (the alternative to the loop; not
 used by the env, see docs/performance.md). With `--stages`, it also splits a batch's step into its
 stages (timers around the batch's methods and around each `mj_step` call), in microseconds per robot-step.
@@ -18,7 +21,8 @@ stages (timers around the batch's methods and around each `mj_step` call), in mi
     python benchmarks/bench_env.py                          # single env, and batches of 16 and 64
     python benchmarks/bench_env.py --num-envs 32 --steps 2000 --rollout --action-scale 0.2
     python benchmarks/bench_env.py --steps 0 --num-envs 32 --stages
-    python benchmarks/bench_env.py --steps 0 --num-envs 32 --physics-threads 2
+    python benchmarks/bench_env.py --steps 0 --num-envs 32 64 --batch-steps 12800 --rounds 6
+    python benchmarks/bench_env.py --steps 0 --num-envs 256 1024 --physics-threads 16   # a 16-core machine
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import zerith_gym
 from zerith_gym import robot, simulator
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import FALL_HEIGHT
+from zerith_gym.workers import available_cores, default_workers
 
 
 def random_actions(steps: int, num_robots: int, scale: float, seed: int = 0) -> np.ndarray:
@@ -231,7 +236,10 @@ def main() -> None:
     parser.add_argument("--rollout", action="store_true", help="also time raw physics via mujoco.rollout")
     parser.add_argument("--stages", action="store_true", help="also split a batch's step into its stages")
     parser.add_argument(
-        "--physics-threads", type=int, default=1, help="also time env and raw physics with this many threads"
+        "--physics-threads",
+        type=int,
+        default=available_cores(),
+        help="cores for raw physics threads, env physics threads and env workers (default: all)",
     )
     args = parser.parse_args()
     print(
@@ -253,25 +261,33 @@ def main() -> None:
         wrapped.reset(seed=0)
         report("single env", interleaved(measures, actions, args.rounds))
 
+    cores = args.physics_threads
     for num in args.num_envs:
-        venv = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario)
+        venv = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario, workers=0)
         venv.reset()
         actions = random_actions(max(args.batch_steps // num, args.rounds), num, args.action_scale)
         vec_env_rate(venv, actions[:10])  # warm-up
         measures = {
             "raw mj_step loop": lambda a, v=venv: physics_rate(v.robots.sim, a),
-            "ZerithVecEnv.step": lambda a, v=venv: vec_env_rate(v, a),
+            "ZerithVecEnv.step, in-process": lambda a, v=venv: vec_env_rate(v, a),
         }
         references = {}
-        if args.physics_threads > 1:
-            k = args.physics_threads
-            threaded = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario, physics_threads=k)
-            threaded.reset()
-            vec_env_rate(threaded, actions[:10])
-            raw_name, env_name = f"raw mj_step loop, {k} threads", f"ZerithVecEnv.step, {k} physics threads"
-            measures[raw_name] = lambda a, v=threaded, k=k: physics_rate(v.robots.sim, a, k)
-            measures[env_name] = lambda a, v=threaded: vec_env_rate(v, a)
-            references[env_name] = raw_name
+        if cores > 1:
+            raw_name = f"raw mj_step loop, {cores} threads"
+            measures[raw_name] = lambda a, v=venv, k=cores: physics_rate(v.robots.sim, a, k)
+            variants = {
+                f"ZerithVecEnv.step, {cores} physics threads": dict(workers=0, physics_threads=cores),
+                f"ZerithVecEnv.step, {min(cores, num)} workers": dict(workers=min(cores, num)),
+            }
+            default = default_workers(num)
+            if default not in (0, min(cores, num)):
+                variants[f"ZerithVecEnv.step, default ({default} workers)"] = {}
+            for name, kwargs in variants.items():
+                other = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario, **kwargs)
+                other.reset()
+                vec_env_rate(other, actions[:10])
+                measures[name] = lambda a, v=other: vec_env_rate(v, a)
+                references[name] = raw_name
         if args.rollout:
             for nthread in (0, 2):
                 measures[f"raw mujoco.rollout nthread={nthread}"] = lambda a, v=venv, k=nthread: rollout_rate(

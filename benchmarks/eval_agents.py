@@ -119,8 +119,8 @@ def evaluate(
     """Run one episode on each of `episodes` robots and summarize them (see the module docstring)."""
     env = zerith_gym.make_vec_env(episodes, seed=seed, scenario=scenario, command=command)
     obs = env.reset()
-    horizon = env.task.episode_steps
-    vx_cmd = env.task.command[:, 0].copy()
+    horizon = env.options.episode_steps
+    vx_cmd = np.array([info["command"][0] for info in env.reset_infos])
     alive = np.ones(episodes, dtype=bool)
     fell = np.zeros(episodes, dtype=bool)
     vx = np.full((horizon, episodes), np.nan)

@@ -130,6 +130,8 @@ def test_truncation_at_20_seconds_with_episode_term_sums():
         _, reward, terminated, truncated, info = env.step(np.zeros(12))
         total += reward
         assert not terminated, f"fell at step {step}"
+        assert list(info["reward_terms"]) == list(REWARD_NAMES)
+        assert sum(info["reward_terms"].values()) == pytest.approx(reward, rel=1e-12, abs=1e-12)
         if truncated:
             break
     assert step == 1000 and truncated and not info["fall"]

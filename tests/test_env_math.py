@@ -10,7 +10,14 @@ from zerith_gym.commands import CommandRanges, sample_commands
 from zerith_gym.disturbances import ForceSchedule, horizontal_vectors, schedule_table
 from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SIZE, POLICY_LAYOUT, layout_slices
 from zerith_gym.randomization import NOMINAL, delay_lags
-from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES, reward_terms
+from zerith_gym.rewards import (
+    DEFAULT_REWARD_WEIGHTS,
+    REWARD_NAMES,
+    TERMS,
+    RewardInputs,
+    reward_terms,
+    reward_terms_by_name,
+)
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import UNEVEN, Terrain
 
@@ -55,7 +62,7 @@ def test_cycle_table_matches_the_gait_functions():
 
 
 def _reference_terms(x: dict) -> np.ndarray:
-    """Table 4 written term by term for one robot, independently of the fused implementation."""
+    """Table 4 written term by term for one robot with scalar math, independently of `zerith_gym.rewards`."""
     c, v, w = x["command"][0], x["base_linvel"][0], x["base_angvel"][0]
     up, stance = x["base_up"][0], x["stance"][0]
     force = x["foot_force"][0].reshape(2, 3)
@@ -89,37 +96,55 @@ def _reference_terms(x: dict) -> np.ndarray:
     return np.array([terms[name] for name in REWARD_NAMES])
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_reward_terms_match_a_term_by_term_reference(seed):
-    rng = np.random.default_rng(seed)
-    up = rng.normal(size=3) + np.array([0.0, 0.0, 4.0])
-    foot_up = rng.uniform(0.8, 1.0, size=(1, 2))
-    x = {
-        "command": rng.uniform(-1, 1, (1, 3)),
-        "base_linvel": rng.normal(size=(1, 3)),
-        "base_angvel": rng.normal(size=(1, 3)),
-        "base_up": (up / np.linalg.norm(up))[None],
-        "height_error": rng.normal(scale=0.05, size=1),
-        "joint_vel": rng.normal(size=(1, 12)),
-        "joint_acc": rng.normal(scale=50, size=(1, 12)),
-        "torques": rng.normal(scale=20, size=(1, 12)),
-        "outside_limits": rng.random(1) < 0.5,
-        "hip_roll_yaw": rng.normal(scale=0.1, size=(1, 4)),
-        "foot_up_z": foot_up,
-        "foot_speed_xy": rng.normal(size=(1, 4)),
-        "foot_force": rng.normal(scale=20, size=(1, 6)),
-        "foot_contact": rng.random((1, 2)) < 0.5,
-        "swing_height_error": rng.normal(scale=0.05, size=(1, 2)),
-        "raibert_error": rng.normal(scale=0.1, size=(1, 4)),
-        "stance": rng.random((1, 2)),
-        "leg_collision": rng.random(1) < 0.5,
-        "action": rng.uniform(-1, 1, (1, 12)),
-        "last_action": rng.uniform(-1, 1, (1, 12)),
-        "last_last_action": rng.uniform(-1, 1, (1, 12)),
+def _random_inputs(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+    up = rng.normal(size=(n, 3)) + np.array([0.0, 0.0, 4.0])
+    return {
+        "command": rng.uniform(-1, 1, (n, 3)),
+        "base_linvel": rng.normal(size=(n, 3)),
+        "base_angvel": rng.normal(size=(n, 3)),
+        "base_up": up / np.linalg.norm(up, axis=1, keepdims=True),
+        "height_error": rng.normal(scale=0.05, size=n),
+        "joint_vel": rng.normal(size=(n, 12)),
+        "joint_acc": rng.normal(scale=50, size=(n, 12)),
+        "torques": rng.normal(scale=20, size=(n, 12)),
+        "outside_limits": rng.random(n) < 0.5,
+        "hip_roll_yaw": rng.normal(scale=0.1, size=(n, 4)),
+        "foot_up_z": rng.uniform(0.8, 1.0, size=(n, 2)),
+        "foot_speed_xy": rng.normal(size=(n, 4)),
+        "foot_force": rng.normal(scale=20, size=(n, 6)),
+        "foot_contact": rng.random((n, 2)) < 0.5,
+        "swing_height_error": rng.normal(scale=0.05, size=(n, 2)),
+        "raibert_error": rng.normal(scale=0.1, size=(n, 4)),
+        "stance": rng.random((n, 2)),
+        "leg_collision": rng.random(n) < 0.5,
+        "action": rng.uniform(-1, 1, (n, 12)),
+        "last_action": rng.uniform(-1, 1, (n, 12)),
+        "last_last_action": rng.uniform(-1, 1, (n, 12)),
     }
-    np.testing.assert_allclose(reward_terms(**x)[0], _reference_terms(x), rtol=1e-10, atol=1e-12)
-    batch = {k: np.concatenate([v, v]) for k, v in x.items()}
-    np.testing.assert_allclose(reward_terms(**batch), np.stack([reward_terms(**x)[0]] * 2))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_named_reward_terms_match_a_scalar_reference(seed):
+    x = _random_inputs(np.random.default_rng(seed), 1)
+    np.testing.assert_allclose(
+        reward_terms_by_name(RewardInputs(**x))[0], _reference_terms(x), rtol=1e-10, atol=1e-12
+    )
+    assert list(TERMS) == list(REWARD_NAMES) and all(TERMS[name].__doc__ for name in REWARD_NAMES)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fused_reward_terms_match_the_named_terms(seed):
+    rng = np.random.default_rng(seed)
+    x = RewardInputs(**_random_inputs(rng, 64))
+    np.testing.assert_allclose(reward_terms(x), reward_terms_by_name(x), rtol=1e-10, atol=1e-12)
+    # Edge cases: exact stance / swing, contacts everywhere, stumbles just either side of the force ratio
+    force = x.foot_force.copy()
+    force[:16, 2] = np.hypot(force[:16, 0], force[:16, 1]) / 4.0 * np.repeat([1 - 1e-9, 1 + 1e-9], 8)
+    force[:16, 5] = 1e3  # the right foot firmly on the ground
+    edge = x._replace(stance=np.round(x.stance), foot_contact=np.ones_like(x.foot_contact), foot_force=force)
+    np.testing.assert_allclose(reward_terms(edge), reward_terms_by_name(edge), rtol=1e-10, atol=1e-12)
+    stumble = reward_terms(edge)[:16, REWARD_NAMES.index("feet_stumble")]
+    assert stumble[:8].all() and not stumble[8:].any()
 
 
 def test_reward_weights_follow_table_4():

@@ -27,11 +27,13 @@ def _obs_equal(batched, i: int | None, single) -> None:
 
 
 def _compare_with_single_envs(
-    seed: int, steps: int, actions_of, physics_threads: int = 1, **env_kwargs
+    seed: int, steps: int, actions_of, physics_threads: int = 1, workers: int = 0, **env_kwargs
 ) -> dict[str, int]:
     """Step a ZerithVecEnv and single envs seeded seed + i side by side; assert every transition is equal."""
     num = 3
-    venv = zerith_gym.make_vec_env(num, seed=seed, physics_threads=physics_threads, **env_kwargs)
+    venv = zerith_gym.make_vec_env(
+        num, seed=seed, physics_threads=physics_threads, workers=workers, **env_kwargs
+    )
     envs = [Zerith1Env(**env_kwargs) for _ in range(num)]
     obs = venv.reset()
     for i, env in enumerate(envs):
@@ -47,6 +49,7 @@ def _compare_with_single_envs(
             single_obs, reward, terminated, truncated, info = env.step(actions[i])
             assert rewards[i] == np.float32(reward)
             assert dones[i] == (terminated or truncated)
+            assert infos[i]["reward_terms"] == info["reward_terms"]
             for key in STEP_INFO_KEYS:
                 np.testing.assert_array_equal(infos[i][key], info[key], err_msg=key)
             assert infos[i]["TimeLimit.truncated"] == (truncated and not terminated)
@@ -64,10 +67,11 @@ def _compare_with_single_envs(
     return counts
 
 
-@pytest.mark.parametrize("physics_threads", [1, 2, 3])
-def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physics_threads):
+@pytest.mark.parametrize(("physics_threads", "workers"), [(1, 0), (2, 0), (3, 0), (1, 2), (1, 3), (2, 1)])
+def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physics_threads, workers):
     # Robot 0 holds still and times out after 60 steps; robots 1 and 2 act at random and fall. With 2 or 3
-    # physics threads the robots are stepped in parallel groups, which must not change any transition.
+    # physics threads the robots are stepped in parallel groups, with workers in other processes (each
+    # resetting its own robots), which must not change any transition.
     rng = np.random.default_rng(0)
 
     def actions_of(t: int) -> np.ndarray:
@@ -76,7 +80,7 @@ def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physic
         return actions
 
     counts = _compare_with_single_envs(
-        7, 250, actions_of, physics_threads, scenario="train", episode_steps=60
+        7, 250, actions_of, physics_threads, workers, scenario="train", episode_steps=60
     )
     assert counts["falls"] >= 4 and counts["time_outs"] >= 4
 
@@ -85,7 +89,7 @@ def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physic
     "env_kwargs",
     [
         dict(scenario="sudden-hands", obs_mode="policy"),
-        dict(scenario="uneven", command=(0.3, 0.0, 0.1)),
+        dict(scenario="uneven", command=(0.3, 0.0, 0.1), workers=2),
         dict(scenario="load-friction", episode_steps=40),
     ],
 )
@@ -132,7 +136,8 @@ def test_seeding_options_attributes_and_bad_input():
     np.testing.assert_array_equal(venv.reset(), first)
     venv.set_options({"command": (0.4, 0.0, 0.0)})
     venv.reset()
-    np.testing.assert_array_equal(venv.get_attr("task")[0].command, [[0.4, 0.0, 0.0]] * 2)
+    np.testing.assert_array_equal([info["command"] for info in venv.reset_infos], [[0.4, 0.0, 0.0]] * 2)
+    assert venv.get_attr("options")[0].scenario == "nominal"
     assert venv.get_attr("obs_mode") == ["policy", "policy"]
     assert venv.get_attr("obs_mode", indices=[1]) == ["policy"]
     venv.set_attr("render_mode", None)
@@ -155,17 +160,21 @@ def test_seeding_options_attributes_and_bad_input():
         ZerithVecEnv(2, episode_steps=0)
     with pytest.raises(ValueError, match="physics threads must be a positive integer"):
         ZerithVecEnv(2, physics_threads=0)
+    with pytest.raises(ValueError, match=r"workers must be an integer in \[1, 2\]"):
+        ZerithVecEnv(2, workers=3)
+    with pytest.raises(ValueError, match=r"unknown ZerithVecEnv option.*'speed'.*valid options: scenario"):
+        ZerithVecEnv(2, speed=1.0)
 
 
 def test_closing_stops_the_physics_threads_and_the_env_still_steps():
-    venv = ZerithVecEnv(4, scenario="nominal", obs_mode="policy", physics_threads=2)
+    venv = ZerithVecEnv(4, scenario="nominal", obs_mode="policy", physics_threads=2, workers=0)
     venv.seed(3)
     venv.reset()
     actions = np.zeros((4, 12), dtype=np.float32)
     threaded = venv.step(actions)[0]
     pool = venv.robots.sim._pool
     venv.close()
-    assert pool is not None and pool._shutdown and venv.robots.sim._pool is None
+    assert venv.workers == 0 and pool is not None and pool._shutdown and venv.robots.sim._pool is None
     after_close = venv.step(actions)[0]
     reference = ZerithVecEnv(4, scenario="nominal", obs_mode="policy")
     reference.seed(3)
@@ -188,3 +197,49 @@ def test_ppo_with_vec_normalize_and_huri_learn_on_the_batched_env():
     huri.learn(128)
     assert huri.num_timesteps == 128 and huri.rollout_buffer.has_time_outs
     assert len(huri.ep_info_buffer) > 0 and np.isfinite(huri.rollout_buffer.advantages).all()
+
+
+def test_reward_terms_of_every_robot_sum_to_its_reward():
+    venv = zerith_gym.make_vec_env(4, seed=2, episode_steps=30, workers=2)
+    venv.reset()
+    rng = np.random.default_rng(2)
+    sums = np.zeros(4)
+    for _ in range(40):
+        _, rewards, dones, infos = venv.step(rng.uniform(-1, 1, size=(4, 12)))
+        for i, info in enumerate(infos):
+            assert rewards[i] == pytest.approx(sum(info["reward_terms"].values()), rel=1e-6, abs=1e-6)
+            sums[i] += sum(info["reward_terms"].values())
+            if dones[i]:
+                assert sum(info["episode_terms"].values()) == pytest.approx(sums[i], rel=1e-9, abs=1e-9)
+                assert info["episode"]["r"] == pytest.approx(sums[i], abs=1e-5)
+                sums[i] = 0.0
+    venv.close()
+
+
+def test_default_workers_follow_the_cores_and_the_robots(monkeypatch):
+    from zerith_gym import workers
+
+    monkeypatch.setattr(workers, "available_cores", lambda: 16)
+    assert [workers.default_workers(n) for n in (1, 8, 15, 16, 32, 100, 1024)] == [0, 0, 0, 2, 4, 12, 16]
+    monkeypatch.setattr(workers, "available_cores", lambda: 1)
+    assert workers.default_workers(1024) == 0
+
+
+def test_worker_failures_and_closing_give_clear_errors():
+    venv = ZerithVecEnv(4, scenario="nominal", obs_mode="policy", workers=2)
+    venv.seed(0)
+    venv.reset()
+    venv.step(np.zeros((4, 12)))
+    venv.robots._processes[1].kill()
+    venv.robots._processes[1].join()
+    with pytest.raises(RuntimeError, match="worker process exited"):
+        venv.step(np.zeros((4, 12)))
+    with pytest.raises(RuntimeError, match="closed"):
+        venv.step(np.zeros((4, 12)))
+    assert not any(process.is_alive() for process in venv.robots._processes)
+
+    venv = ZerithVecEnv(4, scenario="nominal", workers=2)
+    venv.close()
+    venv.close()  # closing twice is harmless
+    with pytest.raises(RuntimeError, match="closed"):
+        venv.reset()

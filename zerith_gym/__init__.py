@@ -18,6 +18,7 @@ from gymnasium.envs.registration import register
 from zerith_gym.envs.zerith1 import Zerith1Env
 from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS
+from zerith_gym.task import EPISODE_STEPS
 
 __all__ = [
     "DEFAULT_REWARD_WEIGHTS",
@@ -31,7 +32,7 @@ __all__ = [
 register(
     id="Zerith1-v0",
     entry_point="zerith_gym.envs.zerith1:Zerith1Env",
-    max_episode_steps=1000,
+    max_episode_steps=EPISODE_STEPS,
 )
 
 

@@ -1,21 +1,23 @@
-"""n Zerith-1 robots in one scenario: the task logic and the physics joined, shared by both envs.
+"""n Zerith-1 robots in one scenario: the env options, and the task logic joined with the physics.
 
-`Zerith1Env` (gymnasium, n = 1) and `ZerithVecEnv` (SB3 VecEnv, n robots) are thin interfaces over
-`ZerithBatch`, so a batch of n robots runs exactly the code of n single envs. Argument checks that both
-envs share live here too.
+`Zerith1Env` (gymnasium, n = 1), `ZerithVecEnv` (SB3 VecEnv, n robots) and each worker process of a
+`ZerithVecEnv` are thin interfaces over `ZerithBatch`, so a batch of n robots runs exactly the code of n
+single envs. The options every env takes are declared once, in `ZerithOptions`; the per-step info dict
+and the observation format are built here for all of them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
 from zerith_gym import robot
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
-from zerith_gym.rewards import resolve_reward_weights
+from zerith_gym.rewards import REWARD_NAMES, resolve_reward_weights
 from zerith_gym.scenarios import Scenario, get_scenario
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask
@@ -35,6 +37,58 @@ def check_command(command: Any, where: str) -> np.ndarray:
     return value
 
 
+@dataclass(frozen=True)
+class ZerithOptions:
+    """The task options of every Zerith env (`gym.make("Zerith1-v0", ...)`, `Zerith1Env`, `ZerithVecEnv`).
+
+    Checked on construction: a bad value raises ValueError saying what is allowed.
+    """
+
+    scenario: str | Scenario = "train"
+    """A name in `zerith_gym.SCENARIOS`, or a custom `Scenario`."""
+    obs_mode: str = "dict"
+    """"dict": `Dict(policy=Box(46), critic=Box(139))`; "policy": the 46-d policy Box alone."""
+    command: tuple[float, float, float] | None = None
+    """A fixed (vx, vy, yaw rate) for every episode; None: the scenario's (drawn in train and nominal)."""
+    reward_weights: Mapping[str, float] | None = None
+    """Overrides of `zerith_gym.DEFAULT_REWARD_WEIGHTS`, by term name."""
+    terrain_seed: int = 0
+    """Seed of the uneven terrain's heights (fixed for the env's lifetime)."""
+    episode_steps: int = EPISODE_STEPS
+    """Control steps before the time-out truncation (1000: 20 s)."""
+
+    def __post_init__(self) -> None:
+        if self.obs_mode not in OBS_MODES:
+            raise ValueError(f"unknown obs_mode {self.obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
+        if not isinstance(self.scenario, Scenario):
+            get_scenario(self.scenario)
+        if self.command is not None:
+            check_command(self.command, "command")
+        resolve_reward_weights(self.reward_weights)
+        if not isinstance(self.episode_steps, int | np.integer) or self.episode_steps < 1:
+            raise ValueError(f"episode_steps must be a positive integer, got {self.episode_steps!r}")
+
+    @classmethod
+    def from_kwargs(cls, kwargs: Mapping[str, Any], where: str = "Zerith1-v0") -> ZerithOptions:
+        """Options from keyword arguments; ValueError naming the unknown ones and the valid ones."""
+        names = [f.name for f in fields(cls)]
+        unknown = sorted(set(kwargs) - set(names))
+        if unknown:
+            raise ValueError(f"unknown {where} option(s) {unknown}; valid options: {', '.join(names)}")
+        return cls(**kwargs)
+
+    @property
+    def resolved_scenario(self) -> Scenario:
+        return self.scenario if isinstance(self.scenario, Scenario) else get_scenario(self.scenario)
+
+    @property
+    def resolved_command(self) -> tuple[float, float, float] | None:
+        """The fixed command of every episode, if any: the option's, else the scenario's."""
+        if self.command is not None:
+            return tuple(check_command(self.command, "command").tolist())
+        return self.resolved_scenario.command
+
+
 def reset_command(options: Mapping[str, Any] | None) -> np.ndarray | None:
     """The episode's command from reset `options` (None if not given); ValueError on unknown options."""
     options = dict(options or {})
@@ -48,14 +102,19 @@ def reset_command(options: Mapping[str, Any] | None) -> np.ndarray | None:
 
 
 def observation_space(obs_mode: str) -> spaces.Space:
-    """The observation space of one robot for `obs_mode`; ValueError listing the valid modes."""
-    if obs_mode not in OBS_MODES:
-        raise ValueError(f"unknown obs_mode {obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
+    """The observation space of one robot for `obs_mode`."""
     policy = spaces.Box(-np.inf, np.inf, shape=(POLICY_SIZE,), dtype=np.float32)
     if obs_mode == "policy":
         return policy
     critic = spaces.Box(-np.inf, np.inf, shape=(CRITIC_SIZE,), dtype=np.float32)
     return spaces.Dict({"policy": policy, "critic": critic})
+
+
+def format_observation(obs_mode: str, policy: np.ndarray, critic: np.ndarray) -> Any:
+    """The observation as `obs_mode` gives it, from the policy and critic parts (one robot or a batch)."""
+    if obs_mode == "policy":
+        return policy
+    return {"policy": policy, "critic": critic}
 
 
 ACTION_SPACE = spaces.Box(-1.0, 1.0, shape=(robot.NUM_JOINTS,), dtype=np.float32)
@@ -73,41 +132,70 @@ def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     )  # np.clip, without its overhead
 
 
+class BatchStep(NamedTuple):
+    """One control step of n robots, with the robots whose episode ended already reset."""
+
+    out: StepOutput  # the step; its observations are the terminal ones of the robots that ended
+    force: np.ndarray  # (n, 3) external force on each target body during the step
+    command: np.ndarray  # (n, 3) command during the step
+    policy_obs: np.ndarray  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
+    critic_obs: np.ndarray  # (n, CRITIC_SIZE)
+    next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
+
+
+def step_infos(step: BatchStep) -> list[dict[str, Any]]:
+    """The info dict of every robot for `step` (keys documented in `Zerith1Env`)."""
+    out = step.out
+    columns = zip(
+        out.fall.tolist(),
+        out.sim_unstable.tolist(),
+        out.lin_vel_error.tolist(),
+        out.ang_vel_error.tolist(),
+        step.force.copy(),
+        step.command.copy(),
+        out.terms.tolist(),
+        strict=True,
+    )
+    return [
+        {
+            "fall": fall,
+            "sim_unstable": unstable,
+            "lin_vel_error": lin_error,
+            "ang_vel_error": ang_error,
+            "external_force": force,
+            "command": command,
+            "reward_terms": dict(zip(REWARD_NAMES, terms, strict=True)),
+        }
+        for fall, unstable, lin_error, ang_error, force, command, terms in columns
+    ]
+
+
 class ZerithBatch:
     """`num_robots` robots: their simulations (`sim`) and task state (`task`), reset and stepped together."""
 
-    def __init__(
-        self,
-        num_robots: int,
-        scenario: str | Scenario = "train",
-        command: tuple[float, float, float] | None = None,
-        reward_weights: Mapping[str, float] | None = None,
-        terrain_seed: int = 0,
-        episode_steps: int = EPISODE_STEPS,
-        physics_threads: int = 1,
-    ) -> None:
+    def __init__(self, num_robots: int, options: ZerithOptions, physics_threads: int = 1) -> None:
         if not isinstance(num_robots, int | np.integer) or num_robots < 1:
             raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
-        if not isinstance(episode_steps, int | np.integer) or episode_steps < 1:
-            raise ValueError(f"episode_steps must be a positive integer, got {episode_steps!r}")
-        self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
-        if command is not None:
-            command = tuple(check_command(command, "command").tolist())
-        elif self.scenario.command is not None:
-            command = self.scenario.command
-        self.terrain = Terrain(self.scenario.terrain, seed=terrain_seed)
+        self.options = options
+        self.scenario = options.resolved_scenario
+        self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
         self.sim = Simulator(num_robots, self.terrain, self.scenario.force.target, physics_threads)
         model = self.sim.models[0]
         self.task = ZerithTask(
             num_robots,
             self.scenario,
             self.terrain,
-            robot.sensor_slices(model),
+            robot.Sensors.layout(model),
             np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
-            resolve_reward_weights(reward_weights),
-            command,
-            int(episode_steps),
+            resolve_reward_weights(options.reward_weights),
+            options.resolved_command,
+            int(options.episode_steps),
         )
+
+    def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
+        """Give robots their random generators for the next resets and steps (robot index -> generator)."""
+        for i, rng in seeds.items():
+            self.task.rngs[i] = rng
 
     def reset(
         self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
@@ -122,8 +210,27 @@ class ZerithBatch:
         self.sim.reset(ids, domain, qpos, self.task.lags[ids])
         return self.task.observe(ids, self.sim.sensordata[ids])
 
-    def step(self, actions: np.ndarray) -> tuple[StepOutput, np.ndarray]:
-        """One control step of every robot with checked actions (n, 12): outputs and external forces."""
+    @property
+    def commands(self) -> np.ndarray:
+        """The current command of every robot, (n, 3) (a live array: copy what you keep)."""
+        return self.task.command
+
+    def step(self, actions: np.ndarray, autoreset: bool = True) -> BatchStep:
+        """One control step of every robot with checked actions (n, 12).
+
+        With `autoreset`, robots whose episode ended start a new one, and the returned next observations
+        and commands are the new episode's.
+        """
         targets, force, kicks = self.task.before_physics(actions)
+        command = self.task.command.copy()
         unstable = self.sim.step(targets, force, kicks)
-        return self.task.after_physics(self.sim.sensordata, unstable), force
+        out = self.task.after_physics(self.sim.sensordata, unstable)
+        policy, critic = out.policy_obs, out.critic_obs
+        ended = np.flatnonzero(out.terminated | out.truncated) if autoreset else ()
+        if len(ended):  # the reset writes into the task's arrays: keep the step's values
+            policy, critic, force = policy.copy(), critic.copy(), force.copy()
+            policy[ended], critic[ended] = self.reset(ended)
+        return BatchStep(out, force, command, policy, critic, self.task.command)
+
+    def close(self) -> None:
+        self.sim.close()

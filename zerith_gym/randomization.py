@@ -7,7 +7,7 @@ batch of robots reproduces the same robots simulated one by one.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -81,13 +81,9 @@ class DomainParams:
     kd_scale: np.ndarray  # (n, 12)
     action_delay: np.ndarray  # (n, 1), seconds
 
-    def as_vector(self) -> np.ndarray:
-        """All parameters side by side, (n, DOMAIN_VECTOR_SIZE), in field order (the critic's layout)."""
-        return np.concatenate([getattr(self, f.name) for f in fields(self)], axis=1)
-
     @staticmethod
     def from_vector(vector: np.ndarray) -> DomainParams:
-        """Views of the columns of `vector` (n, DOMAIN_VECTOR_SIZE) as parameters (inverse of `as_vector`)."""
+        """Views of the columns of `vector` (n, DOMAIN_VECTOR_SIZE) (the critic's layout) as parameters."""
         params, start = {}, 0
         for name, size in DOMAIN_SIZES.items():
             params[name] = vector[:, start : start + size]

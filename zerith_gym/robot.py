@@ -6,7 +6,9 @@ robot can be plugged in by writing another module like this one (and its MJCF).
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,9 +39,6 @@ ROOT_BODY = "pelvis"
 HAND_BODIES = ("left_hand", "right_hand")
 FOOT_BODIES = ("left_foot", "right_foot")
 FOOT_GEOMS = ("left_foot", "right_foot")
-FOOT_SOLE_HALF_LENGTH = 0.11
-"""Half length (m) of the foot box; used to place the robot above the ground at reset."""
-
 STANDING_HEIGHT = 0.745
 """Pelvis height (m) above the ground when standing still in the default pose."""
 HIP_WIDTH = 0.2
@@ -62,3 +61,60 @@ def sensor_slices(model) -> dict[str, slice]:
         start = int(model.sensor_adr[i])
         slices[name] = slice(start, start + int(model.sensor_dim[i]))
     return slices
+
+
+_FEET = tuple(f"{side}_foot" for side in SIDES)
+SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
+    "base_pos": ("base_pos",),
+    "base_heading": ("base_heading",),
+    "base_up": ("base_up",),
+    "base_linvel": ("base_linvel",),
+    "base_angvel": ("base_angvel",),
+    "joint_pos": tuple(f"{joint}_pos" for joint in JOINT_NAMES),
+    "joint_vel": tuple(f"{joint}_vel" for joint in JOINT_NAMES),
+    "joint_torque": tuple(f"{joint}_torque" for joint in JOINT_NAMES),
+    "foot_pos": tuple(f"{foot}_pos" for foot in _FEET),
+    "foot_up": tuple(f"{foot}_up" for foot in _FEET),
+    "foot_linvel": tuple(f"{foot}_linvel" for foot in _FEET),
+    "foot_force": tuple(f"{foot}_force" for foot in _FEET),
+    "leg_collision": ("leg_collision",),
+}
+"""Each quantity the task reads, and the MJCF sensors it is made of (contiguous, in this order)."""
+
+
+class Sensors(NamedTuple):
+    """The robot's readings, one field per quantity of `SENSOR_GROUPS`; all in the world frame unless noted.
+
+    As a layout, each field is a slice of `data.sensordata`; as readings of n robots (`layout.read`), each
+    is an (n, width) view of their sensor rows.
+    """
+
+    base_pos: np.ndarray  # (3) pelvis position
+    base_heading: np.ndarray  # (3) pelvis x axis
+    base_up: np.ndarray  # (3) world z axis in the pelvis frame
+    base_linvel: np.ndarray  # (3) pelvis frame
+    base_angvel: np.ndarray  # (3) pelvis frame
+    joint_pos: np.ndarray  # (12)
+    joint_vel: np.ndarray  # (12)
+    joint_torque: np.ndarray  # (12) actuator forces
+    foot_pos: np.ndarray  # (6) left xyz, right xyz
+    foot_up: np.ndarray  # (6) each sole's z axis: left xyz, right xyz
+    foot_linvel: np.ndarray  # (6) left xyz, right xyz
+    foot_force: np.ndarray  # (6) ground reaction on each sole: left xyz, right xyz
+    leg_collision: np.ndarray  # (1) > 0 when the legs touch
+
+    @staticmethod
+    def layout(model) -> Sensors:
+        """Slices of `data.sensordata` of every quantity; ValueError if a quantity's sensors are split."""
+        slices = sensor_slices(model)
+        blocks = {}
+        for quantity, names in SENSOR_GROUPS.items():
+            parts = [slices[name] for name in names]
+            if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
+                raise ValueError(f"sensors {names} must be contiguous in the model")
+            blocks[quantity] = slice(parts[0].start, parts[-1].stop)
+        return Sensors(**blocks)
+
+    def read(self, sensordata: np.ndarray) -> Sensors:
+        """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""
+        return Sensors(*(sensordata[:, block] for block in self))

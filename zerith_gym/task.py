@@ -14,8 +14,8 @@ robots stepped together follow exactly the trajectories of n single environments
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,10 +30,8 @@ from zerith_gym.disturbances import (
     update_forces,
 )
 from zerith_gym.observations import (
-    CRITIC_LAYOUT,
     CRITIC_SIZE,
     HEIGHT_SAMPLE_OFFSETS,
-    POLICY_LAYOUT,
     POLICY_SIZE,
     layout_slices,
     policy_noise_scale,
@@ -46,7 +44,7 @@ from zerith_gym.randomization import (
     domain_bounds,
     uniform_in,
 )
-from zerith_gym.rewards import REWARD_NAMES, reward_terms
+from zerith_gym.rewards import RewardInputs, reward_terms
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import Terrain
 
@@ -80,21 +78,6 @@ _RESET = layout_slices(
 RESET_DRAWS = _RESET["step"].stop
 """Uniform numbers each robot draws per reset, in the order of `_RESET`."""
 _COS_FALL_TILT = float(np.cos(FALL_TILT))
-_P = layout_slices(POLICY_LAYOUT)
-_C = layout_slices(CRITIC_LAYOUT)
-_DOMAIN = slice(_C["domain_friction"].start, CRITIC_SIZE)
-
-
-@dataclass
-class _Evaluation:
-    policy: np.ndarray
-    critic: np.ndarray
-    terms: np.ndarray | None
-    qvel: np.ndarray
-    base_height: np.ndarray
-    up_z: np.ndarray
-    lin_vel_error: np.ndarray
-    ang_vel_error: np.ndarray
 
 
 @dataclass
@@ -110,7 +93,16 @@ class StepOutput:
     sim_unstable: np.ndarray  # (n,) bool
     lin_vel_error: np.ndarray  # (n,) |v_xy - v_xy_cmd|, m/s
     ang_vel_error: np.ndarray  # (n,) |yaw rate - commanded|, rad/s
-    terms: np.ndarray  # (n, K) weighted, dt-scaled reward terms of this step
+    terms: np.ndarray  # (n, K) weighted, dt-scaled reward terms of this step, columns in REWARD_NAMES order
+
+
+class _Ground(NamedTuple):
+    """Heights above the ground under the robots (the terrain's height subtracted)."""
+
+    base_height: np.ndarray  # (n,) pelvis
+    foot_clearance: np.ndarray  # (n, 2) soles
+    height_samples: np.ndarray  # (n, 18) soles above the ground at the sample points around each foot
+    foot_contact: np.ndarray  # (n, 2) bool
 
 
 class ZerithTask:
@@ -121,7 +113,7 @@ class ZerithTask:
         num_robots: int,
         scenario: Scenario,
         terrain: Terrain,
-        sensors: dict[str, slice],
+        sensors: robot.Sensors,
         joint_range: np.ndarray,
         reward_weights: np.ndarray,
         command: tuple[float, float, float] | None = None,
@@ -154,7 +146,8 @@ class ZerithTask:
             ]
         )
         self.gait_table = gait.cycle_table(robot.CONTROL_DT)
-        self._sensor_views(sensors)
+        self.sensors = sensors
+        self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
 
         self.rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self.step_count = np.zeros(n, dtype=int)
@@ -165,41 +158,10 @@ class ZerithTask:
         self.force = np.zeros((n, 3))
         self._domain_bounds = domain_bounds(self.ranges)
         self.domain_vector = np.zeros((n, DOMAIN_VECTOR_SIZE))
-        self.domain = DomainParams.from_vector(self.domain_vector)  # views of domain_vector
         self.lags = np.zeros((n, robot.DECIMATION), dtype=int)
-        self.episode_sums = np.zeros((n, len(REWARD_NAMES)))
         self.policy_obs = np.zeros((n, POLICY_SIZE), dtype=np.float32)
         self.critic_obs = np.zeros((n, CRITIC_SIZE), dtype=np.float32)
         self._uniforms = np.zeros((n, STEP_DRAWS))
-
-    def _sensor_views(self, sensors: dict[str, slice]) -> None:
-        """Slices of sensordata for each quantity; sensors of one quantity are contiguous in the MJCF."""
-
-        def block(*names: str) -> slice:
-            parts = [sensors[name] for name in names]
-            if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
-                raise ValueError(f"sensors {names} must be contiguous in the model")
-            return slice(parts[0].start, parts[-1].stop)
-
-        joints, feet = robot.JOINT_NAMES, ("left_foot", "right_foot")
-        self._s_base_pos = block("base_pos")
-        self._s_heading = block("base_heading")
-        self._s_base_up = block("base_up")
-        self._s_linvel = block("base_linvel")
-        self._s_angvel = block("base_angvel")
-        self._s_qpos = block(*(f"{j}_pos" for j in joints))
-        self._s_qvel = block(*(f"{j}_vel" for j in joints))
-        self._s_torque = block(*(f"{j}_torque" for j in joints))
-        self._s_foot_pos = block(*(f"{f}_pos" for f in feet))
-        self._s_foot_up = block(*(f"{f}_up" for f in feet))
-        self._s_foot_vel = block(*(f"{f}_linvel" for f in feet))
-        self._s_foot_force = block(*(f"{f}_force" for f in feet))
-        self._s_collision = sensors["leg_collision"].start
-        self._hip_roll_yaw = np.array([0, 1, 6, 7])
-        self._xy_of_two = np.array([0, 1, 3, 4])
-        self._z_of_two = np.array([2, 5])
-        self._foot_of_sample = np.repeat([0, 1], len(HEIGHT_SAMPLE_OFFSETS))
-        self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
 
     # ----------------------------------------------------------------------------------------- reset
     def reset(self, ids: np.ndarray) -> tuple[DomainParams, np.ndarray]:
@@ -242,7 +204,6 @@ class ZerithTask:
         self.actions[ids] = 0.0
         self.joint_vel[ids] = 0.0
         self.force[ids] = 0.0
-        self.episode_sums[ids] = 0.0
         return domain, qpos
 
     def set_command(self, ids: np.ndarray, command: np.ndarray) -> None:
@@ -281,12 +242,16 @@ class ZerithTask:
         any_unstable = bool(np.logical_or.reduce(unstable))
         if any_unstable:
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
-        ev = self._evaluate(slice(None), sensordata, with_rewards=True)
-        self.joint_vel[:] = ev.qvel  # a copy: `ev.qvel` may view the simulator's sensordata
-        terms = ev.terms
+        every = slice(None)
+        readings = self.sensors.read(sensordata)
+        clock = self.gait_table[self.gait_step]  # (n, 8), see gait.cycle_table
+        ground = self._ground(readings)
+        terms = reward_terms(self._reward_inputs(every, readings, ground, clock))
+        terms *= self.reward_weights
+        policy, critic = self._observations(every, readings, ground, clock)
+        self.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
         reward = np.add.reduce(terms, axis=1)
-        policy, critic = ev.policy, ev.critic
-        fall = ((ev.base_height < FALL_HEIGHT) | (ev.up_z < _COS_FALL_TILT)) & ~unstable
+        fall = self._falls(readings, ground) & ~unstable
         truncated = ((self.step_count >= self.episode_steps) | unstable) & ~fall
         if any_unstable:
             policy[unstable] = self.policy_obs[unstable]
@@ -294,7 +259,8 @@ class ZerithTask:
             terms[unstable] = 0.0
             reward[unstable] = 0.0
         self.policy_obs, self.critic_obs = policy, critic
-        self.episode_sums += terms
+        linvel, angvel, command = readings.base_linvel, readings.base_angvel, self.command
+        velocity_error = linvel[:, :2] - command[:, :2]
         return StepOutput(
             policy_obs=policy,
             critic_obs=critic,
@@ -303,107 +269,70 @@ class ZerithTask:
             truncated=truncated,
             fall=fall,
             sim_unstable=unstable,
-            lin_vel_error=ev.lin_vel_error,
-            ang_vel_error=ev.ang_vel_error,
+            lin_vel_error=np.hypot(velocity_error[:, 0], velocity_error[:, 1]),
+            ang_vel_error=np.abs(angvel[:, 2] - command[:, 2]),
             terms=terms,
         )
 
     def observe(self, ids: np.ndarray, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Policy and critic observations of robots `ids` right after their reset, from their sensors."""
-        ev = self._evaluate(ids, sensordata, with_rewards=False)
-        self.joint_vel[ids] = ev.qvel
-        self.policy_obs[ids], self.critic_obs[ids] = ev.policy, ev.critic
-        return ev.policy, ev.critic
+        readings = self.sensors.read(sensordata)
+        clock = self.gait_table[self.gait_step[ids]]
+        policy, critic = self._observations(ids, readings, self._ground(readings), clock)
+        self.joint_vel[ids] = readings.joint_vel
+        # New arrays: those of the last step were handed out (terminal observations of these robots).
+        self.policy_obs, self.critic_obs = self.policy_obs.copy(), self.critic_obs.copy()
+        self.policy_obs[ids], self.critic_obs[ids] = policy, critic
+        return policy, critic
 
-    def _evaluate(self, sel: slice | np.ndarray, s: np.ndarray, with_rewards: bool) -> _Evaluation:
-        """Everything computed from the sensors `s` of robots `sel`; changes no state."""
-        n = len(s)
-        command, actions = self.command[sel], self.actions[sel]
-        clock = self.gait_table[self.gait_step[sel]]  # (n, 8), see gait.cycle_table
-        stance = clock[:, 2:4]
-        base_pos, heading, up = s[:, self._s_base_pos], s[:, self._s_heading], s[:, self._s_base_up]
-        linvel, angvel = s[:, self._s_linvel], s[:, self._s_angvel]
-        qpos, qvel = s[:, self._s_qpos], s[:, self._s_qvel]
-        foot_pos = s[:, self._s_foot_pos]  # (n, 6): left xyz, right xyz
-        foot_force = s[:, self._s_foot_force]
-        foot_z = foot_pos[:, self._z_of_two]
-
+    # ----------------------------------------------------------------- from sensor readings (no state change)
+    def _ground(self, r: robot.Sensors) -> _Ground:
+        """Pelvis and soles above the ground under them, and which feet touch it."""
+        foot_z = r.foot_pos[:, _FOOT_Z]
         if self.terrain.is_plane:
-            base_height = base_pos[:, 2]
+            base_height = r.base_pos[:, 2]
             foot_clearance = foot_z
-            height_samples = foot_z[:, self._foot_of_sample]  # the sole height at every sample point
+            height_samples = foot_z[:, _FOOT_OF_SAMPLE]  # the sole height at every sample point
         else:
-            base_height = base_pos[:, 2] - self.terrain.height_at(base_pos[:, :2])
-            feet_xy = foot_pos[:, self._xy_of_two].reshape(n, 2, 2)
+            n = len(foot_z)
+            base_height = r.base_pos[:, 2] - self.terrain.height_at(r.base_pos[:, :2])
+            feet_xy = r.foot_pos[:, _FOOT_XY].reshape(n, 2, 2)
             foot_clearance = foot_z - self.terrain.height_at(feet_xy)
-            points = feet_xy[:, :, None, :] + _rotate(HEIGHT_SAMPLE_OFFSETS, heading)[:, None]  # (n, 2, 9, 2)
+            cos_yaw, sin_yaw = _yaw(r.base_heading)
+            x, y = HEIGHT_SAMPLE_OFFSETS[:, 0], HEIGHT_SAMPLE_OFFSETS[:, 1]
+            offsets = np.stack([cos_yaw * x - sin_yaw * y, sin_yaw * x + cos_yaw * y], axis=-1)  # (n, 9, 2)
+            points = feet_xy[:, :, None, :] + offsets[:, None]  # (n, 2, 9, 2)
             height_samples = (foot_z[:, :, None] - self.terrain.height_at(points)).reshape(n, -1)
+        foot_contact = r.foot_force[:, _FOOT_Z] > CONTACT_THRESHOLD
+        return _Ground(base_height, foot_clearance, height_samples, foot_contact)
 
-        foot_contact = foot_force[:, self._z_of_two] > CONTACT_THRESHOLD
-        joint_offset = qpos - robot.DEFAULT_JOINT_POS
-
-        terms = None
-        if with_rewards:
-            # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
-            norm = np.hypot(heading[:, 0:1], heading[:, 1:2]) + 1e-9
-            cos_yaw, sin_yaw = heading[:, 0:1] / norm, heading[:, 1:2] / norm
-            rel_x = foot_pos[:, 0::3] - base_pos[:, 0:1]
-            rel_y = foot_pos[:, 1::3] - base_pos[:, 1:2]
-            shift = clock[:, 6:8]  # Raibert: feet ahead/behind the hips by shift * commanded velocity
-            raibert_error = np.concatenate(
-                [
-                    cos_yaw * rel_x + sin_yaw * rel_y - shift * command[:, 0:1],
-                    cos_yaw * rel_y - sin_yaw * rel_x - shift * command[:, 1:2] - self._half_stance,
-                ],
-                axis=1,
-            )  # x left, x right, y left, y right
-            terms = reward_terms(
-                command=command,
-                base_linvel=linvel,
-                base_angvel=angvel,
-                base_up=up,
-                height_error=base_height - robot.STANDING_HEIGHT,
-                joint_vel=qvel,
-                joint_acc=(qvel - self.joint_vel[sel]) * (1.0 / robot.CONTROL_DT),
-                torques=s[:, self._s_torque],
-                outside_limits=np.logical_or.reduce((qpos < self.soft_low) | (qpos > self.soft_high), axis=1),
-                hip_roll_yaw=joint_offset[:, self._hip_roll_yaw],
-                foot_up_z=s[:, self._s_foot_up][:, self._z_of_two],
-                foot_speed_xy=s[:, self._s_foot_vel][:, self._xy_of_two],
-                foot_force=foot_force,
-                foot_contact=foot_contact,
-                swing_height_error=foot_clearance - clock[:, 4:6],
-                raibert_error=raibert_error,
-                stance=stance,
-                leg_collision=s[:, self._s_collision] > 0,
-                action=actions[:, 0],
-                last_action=actions[:, 1],
-                last_last_action=actions[:, 2],
-            )
-            terms *= self.reward_weights
-
+    def _observations(
+        self, sel: slice | np.ndarray, r: robot.Sensors, ground: _Ground, clock: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Policy (noisy where the scenario says so) and critic observations (float32) of robots `sel`."""
+        up = r.base_up
         policy = np.concatenate(
             [
                 np.arctan2(up[:, 1:2], up[:, 2:3]),  # roll
                 np.arcsin(np.minimum(np.maximum(-up[:, 0:1], -1.0), 1.0)),  # pitch
-                angvel,
+                r.base_angvel,
                 clock[:, 0:2],
-                command,
-                joint_offset,
-                qvel,
-                actions[:, 0],
+                self.command[sel],
+                r.joint_pos - robot.DEFAULT_JOINT_POS,
+                r.joint_vel,
+                self.actions[sel, 0],
             ],
             axis=1,
         )
         critic = np.concatenate(
             [
                 policy,
-                linvel,
-                base_height[:, None],
-                height_samples,
-                foot_contact,
-                foot_force,
-                stance,
+                r.base_linvel,
+                ground.base_height[:, None],
+                ground.height_samples,
+                ground.foot_contact,
+                r.foot_force,
+                clock[:, 2:4],  # desired contacts
                 self.force[sel],
                 self.domain_vector[sel],
             ],
@@ -412,32 +341,65 @@ class ZerithTask:
         )
         if self._noisy:
             policy += (2.0 * self._uniforms[sel, _NOISE] - 1.0) * self.noise_scale
-        velocity_error = linvel[:, :2] - command[:, :2]
-        return _Evaluation(
-            policy=policy.astype(np.float32),
-            critic=critic,
-            terms=terms,
-            qvel=qvel,
-            base_height=base_height,
-            up_z=up[:, 2],
-            lin_vel_error=np.hypot(velocity_error[:, 0], velocity_error[:, 1]),
-            ang_vel_error=np.abs(angvel[:, 2] - command[:, 2]),
+        return policy.astype(np.float32), critic
+
+    def _reward_inputs(
+        self, sel: slice | np.ndarray, r: robot.Sensors, ground: _Ground, clock: np.ndarray
+    ) -> RewardInputs:
+        """What the reward terms of robots `sel` read (zerith_gym.rewards)."""
+        command, actions, foot_pos = self.command[sel], self.actions[sel], r.foot_pos
+        # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
+        cos_yaw, sin_yaw = _yaw(r.base_heading)
+        rel_x = foot_pos[:, 0::3] - r.base_pos[:, 0:1]
+        rel_y = foot_pos[:, 1::3] - r.base_pos[:, 1:2]
+        shift = clock[:, 6:8]  # Raibert: feet ahead/behind the hips by shift * commanded velocity
+        raibert_error = np.concatenate(
+            [
+                cos_yaw * rel_x + sin_yaw * rel_y - shift * command[:, 0:1],
+                cos_yaw * rel_y - sin_yaw * rel_x - shift * command[:, 1:2] - self._half_stance,
+            ],
+            axis=1,
+        )
+        joint_pos, joint_vel = r.joint_pos, r.joint_vel
+        return RewardInputs(
+            command=command,
+            base_linvel=r.base_linvel,
+            base_angvel=r.base_angvel,
+            base_up=r.base_up,
+            height_error=ground.base_height - robot.STANDING_HEIGHT,
+            joint_vel=joint_vel,
+            joint_acc=(joint_vel - self.joint_vel[sel]) * (1.0 / robot.CONTROL_DT),
+            torques=r.joint_torque,
+            outside_limits=np.logical_or.reduce(
+                (joint_pos < self.soft_low) | (joint_pos > self.soft_high), axis=1
+            ),
+            hip_roll_yaw=joint_pos[:, _HIP_ROLL_YAW] - robot.DEFAULT_JOINT_POS[_HIP_ROLL_YAW],
+            foot_up_z=r.foot_up[:, _FOOT_Z],
+            foot_speed_xy=r.foot_linvel[:, _FOOT_XY],
+            foot_force=r.foot_force,
+            foot_contact=ground.foot_contact,
+            swing_height_error=ground.foot_clearance - clock[:, 4:6],
+            raibert_error=raibert_error,
+            stance=clock[:, 2:4],
+            leg_collision=r.leg_collision[:, 0] > 0,
+            action=actions[:, 0],
+            last_action=actions[:, 1],
+            last_last_action=actions[:, 2],
         )
 
-    def episode_terms(self, i: int) -> dict[str, float]:
-        """Per-term sums of the weighted rewards over robot i's episode so far."""
-        return dict(zip(REWARD_NAMES, self.episode_sums[i].tolist(), strict=True))
+    @staticmethod
+    def _falls(r: robot.Sensors, ground: _Ground) -> np.ndarray:
+        """Which robots fell: pelvis too low above the ground or tilted too far."""
+        return (ground.base_height < FALL_HEIGHT) | (r.base_up[:, 2] < _COS_FALL_TILT)
 
 
-def _rotate(xy: np.ndarray, heading: np.ndarray, inverse: bool = False) -> np.ndarray:
-    """Rotate points xy (..., 2) by each robot's yaw (given by its heading vector (n, 3)), or by minus it.
+_FOOT_XY = np.array([0, 1, 3, 4])  # of a (left xyz, right xyz) row
+_FOOT_Z = np.array([2, 5])
+_FOOT_OF_SAMPLE = np.repeat([0, 1], len(HEIGHT_SAMPLE_OFFSETS))
+_HIP_ROLL_YAW = np.array([0, 1, 6, 7])  # joints: left hip yaw, roll, right hip yaw, roll
 
-    `xy` is (k, 2) (the same points for every robot) or (n, k, 2); the result is (n, k, 2).
-    """
-    norm = np.hypot(heading[:, 0], heading[:, 1]) + 1e-9
-    c = (heading[:, 0] / norm)[:, None]
-    s = (heading[:, 1] / norm)[:, None]
-    if inverse:
-        s = -s
-    x, y = xy[..., 0], xy[..., 1]
-    return np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+def _yaw(heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine and sine (n, 1) each of each robot's yaw, from its heading vector (n, 3)."""
+    norm = np.hypot(heading[:, 0:1], heading[:, 1:2]) + 1e-9
+    return heading[:, 0:1] / norm, heading[:, 1:2] / norm

@@ -1,8 +1,10 @@
-"""`ZerithVecEnv`: n Zerith-1 robots in one process, as a Stable-Baselines3 `VecEnv`.
+"""`ZerithVecEnv`: n Zerith-1 robots stepped together, as a Stable-Baselines3 `VecEnv`.
 
-Observations, rewards and randomization are computed with numpy over the whole batch (`ZerithTask`), the
-physics of each robot runs in C (`Simulator`), and robot i seeded with `seed + i` follows exactly the
-trajectory of a single `Zerith1Env` seeded with `seed + i` (tested). Use it wherever SB3 takes a VecEnv:
+Observations, rewards and randomization are computed with numpy over batches of robots (`ZerithTask`),
+the physics of each robot runs in C (`Simulator`); the robots are split over worker processes, one per
+core by default (`zerith_gym.workers`). Robot i seeded with `seed + i` follows exactly the trajectory of
+a single `Zerith1Env` seeded with `seed + i`, whatever the number of workers (tested). Use it wherever
+SB3 takes a VecEnv:
 
     from stable_baselines3 import PPO
     import zerith_gym
@@ -12,14 +14,15 @@ trajectory of a single `Zerith1Env` seeded with `seed + i` (tested). Use it wher
 
 Semantics follow SB3's `DummyVecEnv` over `Monitor`-wrapped single envs: automatic reset with
 `info["terminal_observation"]` and `info["TimeLimit.truncated"]`, `info["episode"]` (return, length, time)
-as `Monitor` writes it, so SB3's `ep_rew_mean` logging works without a wrapper. Attributes and methods
-are those of the batch, shared by all robots.
+as `Monitor` writes it, so SB3's `ep_rew_mean` logging works without a wrapper; `info["reward_terms"]`
+every step and `info["episode_terms"]` at episode ends. Attributes and methods are those of the VecEnv,
+shared by all robots.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -30,108 +33,116 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from zerith_gym import robot
-from zerith_gym.batch import ACTION_SPACE, ZerithBatch, check_actions, observation_space, reset_command
-from zerith_gym.scenarios import Scenario
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.batch import (
+    ACTION_SPACE,
+    ZerithBatch,
+    ZerithOptions,
+    check_actions,
+    format_observation,
+    observation_space,
+    reset_command,
+    step_infos,
+)
+from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.workers import WorkerPool, default_workers
 
 
 class ZerithVecEnv(VecEnv):
-    """`num_envs` Zerith1-v0 robots stepped together; the other arguments are those of `Zerith1Env`.
+    """`num_envs` Zerith1-v0 robots stepped together; `options` are those of `ZerithOptions`.
 
-    `physics_threads`: threads stepping the robots' physics in parallel (MuJoCo releases the GIL in
-    `mj_step`); the transitions are the same for any number. More than one pays where cores are free while
-    the env steps, e.g. during rollout collection (docs/performance.md).
+    `workers`: processes stepping the robots, each a contiguous slice of them with its own task logic and
+    physics (`zerith_gym.workers`); 0 steps every robot in this process. The default (None) takes one
+    worker per CPU core with at least 8 robots each, or 0 where that makes fewer than two
+    (`default_workers`). `physics_threads`: threads stepping the physics of the robots of one process
+    (MuJoCo releases the GIL in `mj_step`; the task logic stays on one thread).
+    The transitions are the same for any number of workers and threads (tested).
     Rendering is not supported (use the single env for videos).
     """
 
     def __init__(
         self,
         num_envs: int,
-        scenario: str | Scenario = "train",
-        obs_mode: str = "dict",
-        command: tuple[float, float, float] | None = None,
-        reward_weights: Mapping[str, float] | None = None,
-        terrain_seed: int = 0,
-        episode_steps: int = EPISODE_STEPS,
+        *,
+        workers: int | None = None,
         physics_threads: int = 1,
+        **options: Any,
     ) -> None:
-        space = observation_space(obs_mode)
-        self.robots = ZerithBatch(
-            num_envs, scenario, command, reward_weights, terrain_seed, episode_steps, physics_threads
-        )
-        self.scenario, self.task = self.robots.scenario, self.robots.task
-        self.obs_mode = obs_mode
+        self.options = ZerithOptions.from_kwargs(options, "ZerithVecEnv")
+        if not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise ValueError(f"the number of robots must be a positive integer, got {num_envs!r}")
+        self.workers = default_workers(num_envs) if workers is None else workers
+        if self.workers:
+            self.robots: ZerithBatch | WorkerPool = WorkerPool(
+                num_envs, self.options, self.workers, physics_threads
+            )
+        else:
+            self.robots = ZerithBatch(num_envs, self.options, physics_threads)
+        self.scenario = self.options.resolved_scenario
+        self.obs_mode = self.options.obs_mode
         self.render_mode = None
-        super().__init__(num_envs, space, ACTION_SPACE)
+        super().__init__(num_envs, observation_space(self.obs_mode), ACTION_SPACE)
         self._action_shape = (num_envs, robot.NUM_JOINTS)
         self._actions = np.zeros(self._action_shape)
         self._returns = np.zeros(num_envs)
         self._lengths = np.zeros(num_envs, dtype=int)
+        self._term_sums = np.zeros((num_envs, len(REWARD_NAMES)))
         self._start_time = time.time()
 
     # ------------------------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
         """Reset every robot, with the seeds of `seed()` and options of `set_options()` if given."""
         commands = {i: reset_command(options) for i, options in enumerate(self._options) if options}
-        for i, seed in enumerate(self._seeds):
-            if seed is not None:
-                self.task.rngs[i] = seeding.np_random(seed)[0]
+        seeds = {i: seeding.np_random(seed)[0] for i, seed in enumerate(self._seeds) if seed is not None}
+        self.robots.seed(seeds)
         policy, critic = self.robots.reset(np.arange(self.num_envs), commands)
-        self.reset_infos = [{"command": row} for row in self.task.command.copy()]
+        self.reset_infos = [{"command": row} for row in self.robots.commands.copy()]
         self._returns[:] = 0.0
         self._lengths[:] = 0
+        self._term_sums[:] = 0.0
         self._reset_seeds()
         self._reset_options()
-        return self._format(policy, critic)
+        return format_observation(self.obs_mode, policy, critic)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = check_actions(actions, self._action_shape)
 
     def step_wait(self) -> VecEnvStepReturn:
-        out, force = self.robots.step(self._actions)
-        task = self.task
+        step = self.robots.step(self._actions)
+        out = step.out
         self._returns += out.reward
         self._lengths += 1
-        command, force = task.command.copy(), force.copy()
-        fall, unstable = out.fall.tolist(), out.sim_unstable.tolist()
-        lin_error, ang_error = out.lin_vel_error.tolist(), out.ang_vel_error.tolist()
-        infos: list[dict[str, Any]] = [
-            {
-                "fall": fall[i],
-                "sim_unstable": unstable[i],
-                "lin_vel_error": lin_error[i],
-                "ang_vel_error": ang_error[i],
-                "external_force": force[i],
-                "command": command[i],
-                "TimeLimit.truncated": False,
-            }
-            for i in range(self.num_envs)
-        ]
-        policy, critic = out.policy_obs.copy(), out.critic_obs.copy()
+        self._term_sums += out.terms
+        infos = step_infos(step)
+        for info in infos:
+            info["TimeLimit.truncated"] = False
         dones = out.terminated | out.truncated
-        ended = np.flatnonzero(dones)
-        if len(ended):
+        ended = np.flatnonzero(dones).tolist()
+        if ended:
             elapsed = round(time.time() - self._start_time, 6)
-            for i in ended.tolist():
+            for i in ended:
                 info = infos[i]
                 info["TimeLimit.truncated"] = bool(out.truncated[i])
-                info["terminal_observation"] = self._format(policy[i].copy(), critic[i].copy())
-                info["episode_terms"] = task.episode_terms(i)
+                info["terminal_observation"] = format_observation(
+                    self.obs_mode, out.policy_obs[i].copy(), out.critic_obs[i].copy()
+                )
+                info["episode_terms"] = dict(zip(REWARD_NAMES, self._term_sums[i].tolist(), strict=True))
                 info["episode"] = {
                     "r": round(float(self._returns[i]), 6),
                     "l": int(self._lengths[i]),
                     "t": elapsed,
                 }
-            policy[ended], critic[ended] = self.robots.reset(ended)
+                self.reset_infos[i] = {"command": step.next_command[i].copy()}
             self._returns[ended] = 0.0
             self._lengths[ended] = 0
-            for i in ended.tolist():
-                self.reset_infos[i] = {"command": task.command[i].copy()}
-        return self._format(policy, critic), out.reward.astype(np.float32), dones, infos
+            self._term_sums[ended] = 0.0
+        policy, critic = step.policy_obs, step.critic_obs
+        if policy is out.policy_obs:  # views of the batch's buffers: SB3 keeps what it is given
+            policy, critic = policy.copy(), critic.copy()
+        return format_observation(self.obs_mode, policy, critic), out.reward.astype(np.float32), dones, infos
 
     def close(self) -> None:
-        """Stop the physics threads, if any (models and data are freed with the object)."""
-        self.robots.sim.close()
+        """Stop the worker processes or physics threads, if any (models and data go with the object)."""
+        self.robots.close()
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [None] * self.num_envs
@@ -160,18 +171,12 @@ class ZerithVecEnv(VecEnv):
         """True for SB3's `Monitor` only: the env writes `Monitor`'s `info["episode"]` itself."""
         return [wrapper_class is Monitor for _ in self._get_indices(indices)]
 
-    # ------------------------------------------------------------------------------------------------
-    def _format(self, policy: np.ndarray, critic: np.ndarray) -> VecEnvObs:
-        if self.obs_mode == "policy":
-            return policy
-        return {"policy": policy, "critic": critic}
-
 
 def make_vec_env(n_envs: int, seed: int | None = None, **env_kwargs: Any) -> ZerithVecEnv:
     """A `ZerithVecEnv` of `n_envs` robots; robot i is seeded with `seed + i` at the first reset.
 
-    `env_kwargs` are those of `Zerith1Env` (scenario, obs_mode, command, reward_weights, terrain_seed,
-    episode_steps) and `physics_threads` (see `ZerithVecEnv`).
+    `env_kwargs` are the options of `ZerithOptions` (scenario, obs_mode, command, reward_weights,
+    terrain_seed, episode_steps) and `workers`, `physics_threads` (see `ZerithVecEnv`).
     """
     env = ZerithVecEnv(n_envs, **env_kwargs)
     if seed is not None:

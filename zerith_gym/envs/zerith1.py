@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -12,12 +11,15 @@ from zerith_gym import robot
 from zerith_gym.batch import (
     ACTION_SPACE,
     ZerithBatch,
+    ZerithOptions,
     check_actions,
+    format_observation,
     observation_space,
     reset_command,
+    step_infos,
 )
-from zerith_gym.scenarios import SCENARIOS, Scenario
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.scenarios import SCENARIOS
 
 _ROBOT = np.array([0])
 
@@ -43,7 +45,9 @@ class Zerith1Env(gym.Env):
     ## Rewards
     The terms of the paper's Table 4 (`zerith_gym.rewards.DEFAULT_REWARD_WEIGHTS`), each weighted and
     multiplied by the control period (0.02 s). Override weights with `reward_weights={name: weight}`.
-    `info["episode_terms"]` holds each term's episode sum when an episode ends.
+    Each term is a named function in `zerith_gym.rewards` (`TERMS`). `info["reward_terms"]` holds each
+    term's weighted value of the step (they sum to the reward), `info["episode_terms"]` each term's
+    episode sum when an episode ends.
 
     ## Episode end
     Terminated on a fall: pelvis below 0.45 m above the ground or tilted more than 0.8 rad. Truncated at
@@ -51,48 +55,45 @@ class Zerith1Env(gym.Env):
     observation is returned with reward 0).
 
     ## Arguments
+    The task options (declared once, in `zerith_gym.batch.ZerithOptions`, for every Zerith env):
     - `scenario`: a name in `zerith_gym.SCENARIOS` (default "train"), or a custom `Scenario`.
     - `obs_mode`: "dict" or "policy".
     - `command`: fixed (vx, vy, yaw rate); default: drawn during the episode (train, nominal) or
       (1, 0, 0) in the evaluation scenarios. `reset(options={"command": ...})` sets it for one episode.
     - `reward_weights`: overrides of the reward weights.
-    - `render_mode`: "human" or "rgb_array" (camera following the robot); `width`, `height`.
     - `terrain_seed`: seed of the uneven terrain's heights (fixed for the env's lifetime).
     - `episode_steps`: control steps before the time-out truncation (default 1000, 20 s). The env
       truncates itself (and reports `episode_terms`); beyond 1000 also raise `gym.make`'s
       `max_episode_steps`.
 
+    and, for this env only, `render_mode`: "human" or "rgb_array" (camera following the robot);
+    `width`, `height`.
+
     ## Info (every step)
     `fall`, `sim_unstable`, `lin_vel_error` (|v_xy - v_cmd|), `ang_vel_error` (|yaw rate - cmd|),
-    `external_force` (N, world frame, on each body of the scenario's target group), `command`.
+    `external_force` (N, world frame, on each body of the scenario's target group), `command`,
+    `reward_terms` (name -> weighted value); at an episode's end also `episode_terms`.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": round(1.0 / robot.CONTROL_DT)}
 
     def __init__(
-        self,
-        scenario: str | Scenario = "train",
-        obs_mode: str = "dict",
-        command: tuple[float, float, float] | None = None,
-        reward_weights: Mapping[str, float] | None = None,
-        render_mode: str | None = None,
-        width: int = 640,
-        height: int = 480,
-        terrain_seed: int = 0,
-        episode_steps: int = EPISODE_STEPS,
+        self, render_mode: str | None = None, width: int = 640, height: int = 480, **options: Any
     ) -> None:
-        self.observation_space = observation_space(obs_mode)
+        self.options = ZerithOptions.from_kwargs(options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             modes = ", ".join(self.metadata["render_modes"])
             raise ValueError(f"unknown render_mode {render_mode!r}; valid values: None, {modes}")
+        self.observation_space = observation_space(self.options.obs_mode)
         self.action_space = ACTION_SPACE
-        self.obs_mode = obs_mode
+        self.obs_mode = self.options.obs_mode
         self.render_mode = render_mode
-        self.robots = ZerithBatch(1, scenario, command, reward_weights, terrain_seed, episode_steps)
+        self.robots = ZerithBatch(1, self.options)
         self.scenario, self.terrain, self.task = self.robots.scenario, self.robots.terrain, self.robots.task
         sim = self.robots.sim
         self.model, self.data, self.nominal = sim.models[0], sim.datas[0], sim.nominal
         self._needs_reset = True
+        self._episode_terms = np.zeros(len(REWARD_NAMES))
         self.width, self.height = width, height
         self._renderer = None
 
@@ -100,42 +101,28 @@ class Zerith1Env(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         command = reset_command(options)
-        self.task.rngs[0] = self.np_random
+        self.robots.seed({0: self.np_random})
         policy, critic = self.robots.reset(_ROBOT, None if command is None else {0: command})
         self._needs_reset = False
-        return self._format(policy[0], critic[0]), {"command": self.task.command[0].copy()}
+        self._episode_terms[:] = 0.0
+        observation = format_observation(self.obs_mode, policy[0], critic[0])
+        return observation, {"command": self.robots.commands[0].copy()}
 
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("Zerith1Env.step() called before reset() or after the episode ended")
-        out, force = self.robots.step(check_actions(action, (robot.NUM_JOINTS,))[None])
-        task = self.task
+        step = self.robots.step(check_actions(action, (robot.NUM_JOINTS,))[None], autoreset=False)
+        out = step.out
+        self._episode_terms += out.terms[0]
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
-        info = {
-            "fall": bool(out.fall[0]),
-            "sim_unstable": bool(out.sim_unstable[0]),
-            "lin_vel_error": float(out.lin_vel_error[0]),
-            "ang_vel_error": float(out.ang_vel_error[0]),
-            "external_force": force[0].copy(),
-            "command": task.command[0].copy(),
-        }
+        info = step_infos(step)[0]
         if terminated or truncated:
-            info["episode_terms"] = task.episode_terms(0)
+            info["episode_terms"] = dict(zip(REWARD_NAMES, self._episode_terms.tolist(), strict=True))
             self._needs_reset = True
         if self.render_mode == "human":
             self.render()
-        return (
-            self._format(out.policy_obs[0], out.critic_obs[0]),
-            float(out.reward[0]),
-            terminated,
-            truncated,
-            info,
-        )
-
-    def _format(self, policy: np.ndarray, critic: np.ndarray):
-        if self.obs_mode == "policy":
-            return policy
-        return {"policy": policy, "critic": critic}
+        observation = format_observation(self.obs_mode, out.policy_obs[0], out.critic_obs[0])
+        return observation, float(out.reward[0]), terminated, truncated, info
 
     # ------------------------------------------------------------------------------------------------
     def render(self):

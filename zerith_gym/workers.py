@@ -1,0 +1,322 @@
+"""`WorkerPool`: n robots split over worker processes, each stepping its own `ZerithBatch` of a slice of them.
+
+The task logic (numpy over the batch) holds Python's GIL, so threads cannot share it out; processes can.
+Worker k owns robots [start_k, stop_k) with their physics *and* task state, so everything a control step
+costs runs in parallel, on as many cores as there are workers. The shape is that of EnvPool and SB3's
+`SubprocVecEnv`, with the data in shared memory instead of pickled messages:
+
+- one shared block holds the actions and every per-robot output (observations, rewards, episode ends,
+  reward terms, info values) as numpy views, the same in every process; worker k reads and writes only
+  its own rows;
+- a step is one byte sent to each worker and one byte back; robots whose episode ended are reset inside
+  their worker in the same step (their terminal observations are kept in the block), so a step costs
+  one round trip whatever happens in it;
+- episode statistics are summed by the caller from the shared rewards and reward terms.
+
+Workers are forked where the OS can (Linux): they start in a fraction of a second, and scripts, notebooks
+and RL Zoo work without an `if __name__ == "__main__":` guard. A worker runs only numpy and MuJoCo, never
+torch, so the parent's threads do not matter to it. Elsewhere (macOS, Windows) they are spawned, which
+needs that guard in the script that creates the env.
+
+A robot gets exactly the calls it would get in a single `ZerithBatch`, with its own random generator, so
+the transitions do not depend on the number of workers (tested). The pool has `ZerithBatch`'s interface
+(`seed`, `reset`, `step`, `commands`, `close`), which is all `ZerithVecEnv` uses.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import itertools
+import multiprocessing as mp
+import os
+import pickle
+import signal
+import traceback
+import weakref
+from collections.abc import Mapping
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from zerith_gym import robot
+from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions
+from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.task import StepOutput
+
+MIN_ROBOTS_PER_WORKER = 8
+"""Below this many robots per worker the hand-over costs more than the parallel work gains."""
+
+_STEP, _OK = b"s", b"k"
+
+
+def available_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def default_workers(num_robots: int) -> int:
+    """Worker processes for `num_robots` robots on this machine: one per core, at least
+    `MIN_ROBOTS_PER_WORKER` robots each; 0 (step in the calling process) when that gives fewer than two."""
+    workers = min(available_cores(), num_robots // MIN_ROBOTS_PER_WORKER)
+    return workers if workers >= 2 else 0
+
+
+def _fields(n: int) -> dict[str, tuple[type, tuple[int, ...]]]:
+    """Every array of the shared block: dtype and shape, for n robots."""
+    return {
+        "actions": (np.float64, (n, robot.NUM_JOINTS)),
+        "policy_obs": (np.float32, (n, POLICY_SIZE)),  # to act on next (after a reset where one ended)
+        "critic_obs": (np.float32, (n, CRITIC_SIZE)),
+        "step_policy_obs": (np.float32, (n, POLICY_SIZE)),  # of the step (terminal where one ended)
+        "step_critic_obs": (np.float32, (n, CRITIC_SIZE)),
+        "reward": (np.float64, (n,)),
+        "terminated": (np.bool_, (n,)),
+        "truncated": (np.bool_, (n,)),
+        "fall": (np.bool_, (n,)),
+        "sim_unstable": (np.bool_, (n,)),
+        "lin_vel_error": (np.float64, (n,)),
+        "ang_vel_error": (np.float64, (n,)),
+        "terms": (np.float64, (n, len(REWARD_NAMES))),
+        "force": (np.float64, (n, 3)),
+        "command": (np.float64, (n, 3)),
+        "next_command": (np.float64, (n, 3)),
+    }
+
+
+def _block_size(n: int) -> int:
+    return sum(
+        _aligned(np.dtype(dtype).itemsize * int(np.prod(shape))) for dtype, shape in _fields(n).values()
+    )
+
+
+def _aligned(size: int) -> int:
+    return -(-size // 64) * 64
+
+
+def _views(buffer: Any, n: int) -> dict[str, np.ndarray]:
+    """Numpy views of each array of the shared block `buffer`."""
+    views, offset = {}, 0
+    for name, (dtype, shape) in _fields(n).items():
+        count = int(np.prod(shape))
+        views[name] = np.frombuffer(buffer, dtype=dtype, count=count, offset=offset).reshape(shape)
+        offset += _aligned(np.dtype(dtype).itemsize * count)
+    return views
+
+
+_PER_ROBOT = ("reward", "terminated", "truncated", "fall", "sim_unstable", "lin_vel_error", "ang_vel_error")
+
+
+def _write_step(shared: dict[str, np.ndarray], rows: slice, step: BatchStep) -> None:
+    out = step.out
+    for name in (
+        "reward",
+        "terminated",
+        "truncated",
+        "fall",
+        "sim_unstable",
+        "lin_vel_error",
+        "ang_vel_error",
+    ):
+        shared[name][rows] = getattr(out, name)
+    shared["terms"][rows] = out.terms
+    shared["step_policy_obs"][rows] = out.policy_obs
+    shared["step_critic_obs"][rows] = out.critic_obs
+    shared["policy_obs"][rows] = step.policy_obs
+    shared["critic_obs"][rows] = step.critic_obs
+    shared["force"][rows] = step.force
+    shared["command"][rows] = step.command
+    shared["next_command"][rows] = step.next_command
+
+
+def _serve(
+    conn: Connection,
+    block: Any,
+    num_robots: int,
+    rows: tuple[int, int],
+    options: ZerithOptions,
+    physics_threads: int,
+) -> None:
+    """A worker's life: build its batch of robots [rows), then answer step / reset / close messages."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle: it closes the pool
+    start, stop = rows
+    mine = slice(start, stop)
+    try:
+        shared = _views(block, num_robots)
+        batch = ZerithBatch(stop - start, options, physics_threads)
+    except BaseException:
+        conn.send_bytes(pickle.dumps(traceback.format_exc()))
+        return
+    conn.send_bytes(_OK)
+    while True:
+        try:
+            message = conn.recv_bytes()
+        except (EOFError, KeyboardInterrupt):
+            break
+        try:
+            if message == _STEP:
+                _write_step(shared, mine, batch.step(shared["actions"][mine]))
+            else:
+                command, payload = pickle.loads(message)
+                if command == "close":
+                    batch.close()
+                    conn.send_bytes(_OK)
+                    break
+                ids, seeds, commands = payload  # reset: robot indices of this worker, counted from 0
+                batch.seed(seeds)
+                policy, critic = batch.reset(ids, commands)
+                shared["policy_obs"][start + ids] = policy
+                shared["critic_obs"][start + ids] = critic
+                shared["next_command"][mine] = batch.commands
+            conn.send_bytes(_OK)
+        except BaseException:
+            conn.send_bytes(pickle.dumps(traceback.format_exc()))
+
+
+class WorkerPool:
+    """`num_robots` robots in `workers` processes (contiguous slices of robots); `ZerithBatch`'s interface."""
+
+    def __init__(
+        self, num_robots: int, options: ZerithOptions, workers: int, physics_threads: int = 1
+    ) -> None:
+        if not isinstance(workers, int | np.integer) or not 1 <= workers <= num_robots:
+            raise ValueError(
+                f"workers must be an integer in [1, {num_robots}] (one robot each), got {workers!r}"
+            )
+        context = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        self.num_robots = num_robots
+        self._seeds: dict[int, np.random.Generator] = {}
+        self._block = context.RawArray(ctypes.c_byte, _block_size(num_robots))
+        self._shared = _views(self._block, num_robots)
+        bounds = np.linspace(0, num_robots, workers + 1).round().astype(int).tolist()
+        self._rows = list(itertools.pairwise(bounds))
+        self._conns: list[Connection] = []
+        self._processes: list[mp.process.BaseProcess] = []
+        for rows in self._rows:
+            parent, child = context.Pipe()
+            process = context.Process(
+                target=_serve,
+                args=(child, self._block, num_robots, rows, options, physics_threads),
+                name=f"zerith-worker-{rows[0]}-{rows[1]}",
+                daemon=True,
+            )
+            process.start()
+            child.close()
+            self._conns.append(parent)
+            self._processes.append(process)
+        self._finalizer = weakref.finalize(self, _shut_down, self._conns, self._processes)
+        self._collect("starting")
+
+    # ---------------------------------------------------------------------------------- ZerithBatch API
+    def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
+        """Give robots their random generators (robot index -> generator); sent with the next reset."""
+        self._seeds.update(seeds)
+
+    def reset(
+        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Start new episodes of robots `ids` (each in its worker); returns their observations."""
+        self._check_open()
+        ids = np.asarray(ids)
+        seeds, self._seeds = self._seeds, {}
+        commands = dict(commands or {})
+        busy = []
+        for conn, (start, stop) in zip(self._conns, self._rows, strict=True):
+            local = ids[(ids >= start) & (ids < stop)] - start
+            local_seeds = {i - start: rng for i, rng in seeds.items() if start <= i < stop}
+            if len(local) == 0 and not local_seeds:
+                continue
+            local_commands = {i - start: c for i, c in commands.items() if start <= i < stop}
+            self._send(conn, pickle.dumps(("reset", (local, local_seeds, local_commands))), "resetting")
+            busy.append(conn)
+        self._collect("resetting", busy)
+        return self._shared["policy_obs"][ids].copy(), self._shared["critic_obs"][ids].copy()
+
+    @property
+    def commands(self) -> np.ndarray:
+        """The current command of every robot, (n, 3)."""
+        return self._shared["next_command"].copy()
+
+    def step(self, actions: np.ndarray) -> BatchStep:
+        """One control step of every robot (checked actions (n, 12)); robots whose episode ended restart."""
+        self._check_open()
+        shared = self._shared
+        shared["actions"][:] = actions
+        for conn in self._conns:
+            self._send(conn, _STEP, "stepping")
+        self._collect("stepping")
+        out = StepOutput(
+            policy_obs=shared["step_policy_obs"].copy(),
+            critic_obs=shared["step_critic_obs"].copy(),
+            reward=shared["reward"].copy(),
+            terminated=shared["terminated"].copy(),
+            truncated=shared["truncated"].copy(),
+            fall=shared["fall"].copy(),
+            sim_unstable=shared["sim_unstable"].copy(),
+            lin_vel_error=shared["lin_vel_error"].copy(),
+            ang_vel_error=shared["ang_vel_error"].copy(),
+            terms=shared["terms"].copy(),
+        )
+        ended = out.terminated | out.truncated
+        policy = np.where(ended[:, None], shared["policy_obs"], out.policy_obs)
+        critic = np.where(ended[:, None], shared["critic_obs"], out.critic_obs)
+        return BatchStep(
+            out,
+            shared["force"].copy(),
+            shared["command"].copy(),
+            policy,
+            critic,
+            shared["next_command"].copy(),
+        )
+
+    def close(self) -> None:
+        """Stop the worker processes (waiting for them to finish their current message)."""
+        self._finalizer()
+
+    # ------------------------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if not self._finalizer.alive:
+            raise RuntimeError("the Zerith worker processes were closed (env.close()); make a new env")
+
+    def _send(self, conn: Connection, message: bytes, doing: str) -> None:
+        try:
+            conn.send_bytes(message)
+        except OSError:
+            self.close()
+            raise RuntimeError(
+                f"a Zerith worker process exited (killed, or out of memory?) before {doing}"
+            ) from None
+
+    def _collect(self, doing: str, conns: list[Connection] | None = None) -> None:
+        """Wait for every worker's answer; RuntimeError with the worker's traceback if one failed."""
+        errors = []
+        for conn in self._conns if conns is None else conns:
+            try:
+                answer = conn.recv_bytes()
+            except (EOFError, OSError):
+                errors.append("the worker process exited (killed, or out of memory?)")
+                continue
+            if answer != _OK:
+                errors.append(pickle.loads(answer))
+        if errors:
+            self.close()
+            raise RuntimeError(f"a Zerith worker process failed while {doing}:\n" + "\n".join(errors))
+
+
+def _shut_down(conns: list[Connection], processes: list[mp.process.BaseProcess]) -> None:
+    """Ask every worker to stop, then make sure it has."""
+    for conn in conns:
+        with contextlib.suppress(OSError, ValueError):
+            conn.send_bytes(pickle.dumps(("close", None)))
+    for process in processes:
+        process.join(timeout=5)
+        if process.is_alive():
+            process.terminate()
+            process.join(timeout=1)
+    for conn in conns:
+        conn.close()
