@@ -25,10 +25,12 @@ tracked the commanded velocity, measured at the pelvis with the simulator's grou
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import json
 import math
 import sys
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -192,6 +194,8 @@ class Physics:
     solver: str = "cg"
     integrator: str = "implicitfast"
     cone: str = "elliptic"
+    delay: float = 0.0
+    """Actuation delay (s): new joint targets reach the actuators this long after the observation."""
 
     @staticmethod
     def training(model_timestep: float) -> Physics:
@@ -199,9 +203,18 @@ class Physics:
         return Physics(model_timestep, "newton", "implicitfast", "pyramidal")
 
     def describe(self) -> str:
-        return (
+        text = (
             f"{1 / self.timestep:.0f} Hz physics, {self.solver} solver, {self.integrator}, {self.cone} cones"
         )
+        return text + (f", {self.delay * 1000:g} ms delay" if self.delay else "")
+
+    def lags(self, substeps: int) -> list[int]:
+        """For each physics step of a control step, how many control steps old the targets it applies are.
+
+        Physics step j of control step k applies the latest targets sent at least `delay` before it.
+        """
+        delay_steps = round(self.delay / self.timestep)
+        return [max(0, -(-(delay_steps - j) // substeps)) for j in range(substeps)]
 
 
 def default_mjcf() -> Path:
@@ -282,10 +295,11 @@ class SimulatedRobot:
         s = self.data.sensordata
         return s[self._sensor["base_pos"]].copy(), s[self._sensor["base_linvel"]].copy()
 
-    def step(self, targets: np.ndarray, substeps: int) -> bool:
-        """Hold the joint targets for `substeps` physics steps; False if the simulation diverged."""
-        self.data.ctrl[self.actuators] = targets
-        mujoco.mj_step(self.model, self.data, nstep=substeps)
+    def step(self, segments: list[tuple[np.ndarray, int]]) -> bool:
+        """Physics steps holding joint targets, as (targets, physics steps) runs; False if it diverged."""
+        for targets, count in segments:
+            self.data.ctrl[self.actuators] = targets
+            mujoco.mj_step(self.model, self.data, nstep=count)
         return bool(np.isfinite(self.data.qvel).all())
 
 
@@ -330,6 +344,9 @@ def run(
     controller = Controller(policy, np.asarray(command, dtype=float))
     robot.reset(controller.default_joint_pos)
     start, _ = robot.ground_truth()
+    lags = physics.lags(substeps)
+    runs = [(lag, lags.count(lag)) for lag in sorted(set(lags), reverse=True)]  # lags never increase
+    sent = deque([controller.default_joint_pos] * (max(lags) + 1), maxlen=max(lags) + 1)  # newest last
     frames, renderer = [], None
     if video is not None:
         renderer = mujoco.Renderer(robot.model, height=480, width=640)
@@ -340,7 +357,8 @@ def run(
         obs, targets = controller.tick(robot.readings())
         if observations is not None:
             observations.append(obs)
-        if not robot.step(targets, substeps):
+        sent.append(targets)
+        if not robot.step([(sent[-1 - lag], count) for lag, count in runs]):
             diverged = True
             break
         position, linvel = robot.ground_truth()
@@ -410,6 +428,12 @@ def main(argv: list[str] | None = None) -> None:
     physics.add_argument("--integrator", choices=list(INTEGRATORS), default=Physics.integrator)
     physics.add_argument("--cone", choices=list(CONES), default=Physics.cone)
     physics.add_argument(
+        "--delay",
+        type=float,
+        default=0.0,
+        help="actuation delay (ms) from observation to actuators (default 0)",
+    )
+    physics.add_argument(
         "--training-physics", action="store_true", help="use training's physics settings instead of the above"
     )
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -423,6 +447,9 @@ def main(argv: list[str] | None = None) -> None:
             settings = Physics.training(mujoco.MjModel.from_xml_path(str(mjcf)).opt.timestep)
         else:
             settings = Physics(args.physics_dt, args.solver, args.integrator, args.cone)
+        if args.delay < 0:
+            raise DeployError(f"--delay must not be negative, got {args.delay}")
+        settings = dataclasses.replace(settings, delay=args.delay / 1000)
         result = run(policy, mjcf, settings, tuple(args.command), args.seconds, args.video)
     except DeployError as error:
         parser.exit(2, f"error: {error}\n")

@@ -280,3 +280,12 @@ def test_runner_refuses_files_it_cannot_use(tmp_path: Path, exported: dict[str, 
         )
     result = run_without_torch(tmp_path, str(not_onnx))
     assert result.returncode == 2 and "error: " in result.stderr and "Traceback" not in result.stderr
+
+
+def test_runner_delay_applies_the_latest_targets_sent_at_least_that_long_before() -> None:
+    """Zerith1-v0's convention (docs/zerith1.md): 25 ms at 5 ms physics applies the action of two control
+    steps ago for the first physics step of a control step and the previous one for the other three."""
+    physics = load_runner().Physics
+    assert physics(0.005, delay=0.025).lags(4) == [2, 1, 1, 1]
+    assert physics(0.001, delay=0.005).lags(20) == [1] * 5 + [0] * 15
+    assert physics(0.001).lags(20) == [0] * 20
