@@ -31,7 +31,7 @@ import json
 import math
 import sys
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +79,12 @@ class OnnxPolicy:
     """An actor written by `python -m sb3_huri.export`: its ONNX Runtime session and its metadata."""
 
     def __init__(self, path: str | Path) -> None:
-        import onnxruntime
+        try:
+            import onnxruntime
+        except ImportError as error:
+            raise DeployError(
+                "onnxruntime is needed: pip install onnxruntime (or 'sb3-huri[deploy]')"
+            ) from error
 
         path = Path(path)
         if not path.is_file():
@@ -129,28 +134,14 @@ class Readings:
     joint_vel: np.ndarray  # (12,) rad/s
 
 
-@dataclass
 class Controller:
-    """The 50 Hz loop of the robot's computer: sensors -> observation -> ONNX actor -> joint targets."""
+    """The 50 Hz loop of the robot's computer: sensors -> observation -> ONNX actor -> joint targets.
 
-    policy: OnnxPolicy
-    command: np.ndarray
-    step: int = 0
-    last_action: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    `command` is (vx, vy, yaw rate); it may be changed between ticks. The gait clock counts the ticks
+    since the controller started, as the policy's training did from each episode's start.
+    """
 
-    def __post_init__(self) -> None:
-        meta = self.policy.metadata
-        self.default_joint_pos = np.asarray(meta["default_joint_pos"], dtype=float)
-        self.action_scale = np.asarray(meta["action_scale"], dtype=float)
-        self.gait_steps = int(meta["gait_steps"])
-        self.last_action = np.zeros(len(self.default_joint_pos))
-        self.layout = [(block["name"], block["size"]) for block in meta["observation_layout"]]
-        unknown = [name for name, _ in self.layout if name not in self._BLOCKS]
-        if unknown:
-            raise DeployError(f"the actor's observation has blocks this runner cannot build: {unknown}")
-        self.command = np.asarray(self.command, dtype=float)
-
-    _BLOCKS = (
+    BLOCKS = (
         "base_roll_pitch",
         "base_angular_velocity",
         "clock_sin_cos",
@@ -159,6 +150,21 @@ class Controller:
         "joint_velocity",
         "last_action",
     )
+    """The observation blocks this controller can build (Zerith1-v0's policy observation)."""
+
+    def __init__(self, policy: OnnxPolicy, command: tuple[float, float, float] | np.ndarray) -> None:
+        meta = policy.metadata
+        self.policy = policy
+        self.command = np.asarray(command, dtype=float)
+        self.default_joint_pos = np.asarray(meta["default_joint_pos"], dtype=float)
+        self.action_scale = np.asarray(meta["action_scale"], dtype=float)
+        self.gait_steps = int(meta["gait_steps"])
+        self.layout = [(block["name"], int(block["size"])) for block in meta["observation_layout"]]
+        unknown = [name for name, _ in self.layout if name not in self.BLOCKS]
+        if unknown:
+            raise DeployError(f"the actor's observation has blocks this controller cannot build: {unknown}")
+        self.step = 0
+        self.last_action = np.zeros(len(self.default_joint_pos))
 
     def observation(self, readings: Readings) -> np.ndarray:
         """The actor's observation at the current tick, in the layout of the ONNX file's metadata."""
@@ -173,14 +179,18 @@ class Controller:
             "joint_velocity": readings.joint_vel,
             "last_action": self.last_action,
         }
-        obs = np.concatenate([np.asarray(blocks[name], dtype=float) for name, _ in self.layout])
-        return obs.astype(np.float32)
+        parts = [np.asarray(blocks[name], dtype=float) for name, _ in self.layout]
+        for (name, size), part in zip(self.layout, parts, strict=True):
+            if part.shape != (size,):
+                raise DeployError(
+                    f"observation block {name!r} has {part.size} values, the actor expects {size}"
+                )
+        return np.concatenate(parts).astype(np.float32)
 
     def tick(self, readings: Readings) -> tuple[np.ndarray, np.ndarray]:
         """One control step: the observation and the joint position targets (rad) to send."""
         obs = self.observation(readings)
-        action = self.policy(obs)
-        self.last_action = action.astype(float)
+        self.last_action = self.policy(obs).astype(float)
         self.step += 1
         return obs, self.default_joint_pos + self.action_scale * self.last_action
 
@@ -347,9 +357,15 @@ def run(
     lags = physics.lags(substeps)
     runs = [(lag, lags.count(lag)) for lag in sorted(set(lags), reverse=True)]  # lags never increase
     sent = deque([controller.default_joint_pos] * (max(lags) + 1), maxlen=max(lags) + 1)  # newest last
-    frames, renderer = [], None
+    frames, renderer, camera = [], None, -1
     if video is not None:
-        renderer = mujoco.Renderer(robot.model, height=480, width=640)
+        imageio = video_module()  # before the run: a missing package should not cost a simulation
+        try:
+            renderer = mujoco.Renderer(robot.model, height=480, width=640)
+        except Exception as error:  # no OpenGL context: MuJoCo's error names the back-end that failed
+            raise DeployError(f"cannot render ({error}); on a headless machine set MUJOCO_GL=egl") from error
+        if mujoco.mj_name2id(robot.model, mujoco.mjtObj.mjOBJ_CAMERA, "track") >= 0:
+            camera = "track"  # Zerith-1's camera that follows the robot
 
     cos_fall_tilt = math.cos(FALL_TILT)
     velocities, fell, diverged, steps = [], False, False, round(seconds / control_dt)
@@ -362,16 +378,18 @@ def run(
             diverged = True
             break
         position, linvel = robot.ground_truth()
-        velocities.append([linvel[0], linvel[1], robot.readings().gyro[2]])
+        readings = robot.readings()
+        velocities.append([linvel[0], linvel[1], readings.gyro[2]])
         if renderer is not None:
-            renderer.update_scene(robot.data, camera="track")
+            renderer.update_scene(robot.data, camera=camera)
             frames.append(renderer.render())
-        if position[2] < FALL_HEIGHT or robot.readings().up[2] < cos_fall_tilt:
+        if position[2] < FALL_HEIGHT or readings.up[2] < cos_fall_tilt:
             fell = True
             break
     if renderer is not None:
         renderer.close()
-        write_video(video, frames, round(1.0 / control_dt))
+        video.parent.mkdir(parents=True, exist_ok=True)
+        imageio.mimwrite(str(video), frames, fps=round(1.0 / control_dt), macro_block_size=1)
 
     v = np.asarray(velocities).reshape(-1, 3)
     cmd = np.asarray(command, dtype=float)
@@ -390,19 +408,20 @@ def run(
     )
 
 
-def write_video(path: Path, frames: list[np.ndarray], fps: int) -> None:
-    """Write the frames as a video file (imageio with its ffmpeg plugin)."""
+def video_module() -> Any:
+    """imageio, which writes the video (with its ffmpeg plugin, imageio-ffmpeg)."""
     try:
         import imageio.v2 as imageio
+        import imageio_ffmpeg  # noqa: F401
     except ImportError as error:
         raise DeployError(
             "--video needs imageio and imageio-ffmpeg: pip install imageio imageio-ffmpeg"
         ) from error
-    path.parent.mkdir(parents=True, exist_ok=True)
-    imageio.mimwrite(str(path), frames, fps=fps, macro_block_size=1)
+    return imageio
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Command line: one run; exit status 1 if the robot fell or the simulation diverged, 2 on bad input."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -454,8 +473,8 @@ def main(argv: list[str] | None = None) -> None:
     except DeployError as error:
         parser.exit(2, f"error: {error}\n")
     if args.json:
-        print(json.dumps(result.__dict__))
-        return
+        print(json.dumps(dataclasses.asdict(result)))
+        sys.exit(1 if result.fell or result.diverged else 0)
     meta = policy.metadata
     vx, vy, wz = result.mean_velocity
     outcome = (
@@ -468,7 +487,7 @@ def main(argv: list[str] | None = None) -> None:
         f"mean vx {vx:.2f} m/s, vy {vy:.2f} m/s, yaw rate {wz:.2f} rad/s; "
         f"mean |v_xy error| {result.lin_vel_error:.3f} m/s, "
         f"|yaw rate error| {result.ang_vel_error:.3f} rad/s; "
-        f"{result.distance:.2f} m walked"
+        f"{result.distance:.2f} m from the start"
     )
     if args.video:
         print(f"  video: {args.video}")

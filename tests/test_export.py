@@ -289,3 +289,25 @@ def test_runner_delay_applies_the_latest_targets_sent_at_least_that_long_before(
     assert physics(0.005, delay=0.025).lags(4) == [2, 1, 1, 1]
     assert physics(0.001, delay=0.005).lags(20) == [1] * 5 + [0] * 15
     assert physics(0.001).lags(20) == [0] * 20
+
+
+def test_runner_writes_a_video(exported: dict[str, Path], tmp_path: Path) -> None:
+    runner = load_runner()
+    video = tmp_path / "videos" / "walk.mp4"
+    try:
+        runner.run(
+            runner.OnnxPolicy(exported["huri"]),
+            runner.default_mjcf(),
+            runner.Physics(),
+            (0.5, 0, 0),
+            0.5,
+            video,
+        )
+    except runner.DeployError as error:
+        if "cannot render" in str(error):
+            pytest.skip(f"rendering unavailable: {error}")
+        raise
+    import imageio.v2 as imageio
+
+    frames = imageio.mimread(str(video))
+    assert len(frames) == 25 and frames[0].shape == (480, 640, 3)
