@@ -21,19 +21,18 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch as th
 import yaml
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from zerith_gym.callbacks import RewardTermsLogger
 from zerith_gym.randomization import NOMINAL, RandomizationRanges
 from zerith_gym.scenarios import Scenario, get_scenario
 
@@ -49,7 +48,7 @@ ALGOS = {
     "huri-cvar": "huri-cvar",
 }
 """RL Zoo algorithm name (the folder the run is written to) -> HuRiPPO variant."""
-_NOT_ALGORITHM_ARGS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
+_NOT_ALGORITHM_ARGS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback")
 
 
 def load_preset(path: Path, env_id: str = ENV_ID) -> dict[str, Any]:
@@ -75,30 +74,6 @@ def normalize_kwargs(preset: dict[str, Any]) -> dict[str, Any] | None:
     if isinstance(value, str):
         return eval(value)
     return {} if value else None
-
-
-class EpisodeStats(BaseCallback):
-    """Logs, per rollout, the mean episode sum of each reward term, the fall rate and velocity errors."""
-
-    def _on_rollout_start(self) -> None:
-        self._terms: list[dict[str, float]] = []
-        self._falls: list[bool] = []
-        self._errors: list[float] = []
-
-    def _on_step(self) -> bool:
-        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
-            self._errors.append(info["lin_vel_error"])
-            if done:
-                self._terms.append(info["episode_terms"])
-                self._falls.append(info["fall"])
-        return True
-
-    def _on_rollout_end(self) -> None:
-        self.logger.record("terms/lin_vel_error", float(np.mean(self._errors)))
-        if self._terms:
-            self.logger.record("terms/fall_rate", float(np.mean(self._falls)))
-            for name in self._terms[0]:
-                self.logger.record(f"terms/{name}", float(np.mean([t[name] for t in self._terms])))
 
 
 def next_run_folder(log_folder: Path, algo: str) -> Path:
@@ -178,10 +153,13 @@ def main() -> None:
     parser.add_argument("--checkpoint-freq", type=int, default=500_000, help="env steps between checkpoints")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest for small nets)")
     parser.add_argument(
-        "--physics-threads",
+        "--workers",
         type=int,
-        default=min(2, os.cpu_count() or 1),
-        help="threads stepping the robots' physics while the policy waits (same results; default 2)",
+        default=None,
+        help="processes stepping the robots (same results for any number; default: one per core, 0: none)",
+    )
+    parser.add_argument(
+        "--physics-threads", type=int, default=1, help="threads stepping the physics of each process's robots"
     )
     parser.add_argument(
         "--curriculum-steps",
@@ -206,6 +184,7 @@ def main() -> None:
             int(preset["n_envs"]),
             seed=args.seed,
             scenario=scaled_scenario(scenario, scale),
+            workers=args.workers,
             physics_threads=args.physics_threads,
             **env_kwargs,
         )
@@ -216,6 +195,7 @@ def main() -> None:
         wrapped = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
         if previous is not None:  # a new stage keeps the statistics learned so far
             wrapped.obs_rms, wrapped.ret_rms = previous.obs_rms, previous.ret_rms
+            previous.close()
         return wrapped
 
     if args.resume:
@@ -247,7 +227,7 @@ def main() -> None:
     checkpoints = CheckpointCallback(
         max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True
     )
-    callbacks = CallbackList([EpisodeStats(), checkpoints])
+    callbacks = CallbackList([RewardTermsLogger(), checkpoints])
     began = time.time()
     for k, (scale, steps) in enumerate(stages):
         if k > 0:

@@ -243,3 +243,26 @@ def test_worker_failures_and_closing_give_clear_errors():
     venv.close()  # closing twice is harmless
     with pytest.raises(RuntimeError, match="closed"):
         venv.reset()
+
+
+def test_reward_terms_logger_writes_each_term_per_rollout(tmp_path):
+    import csv
+
+    from stable_baselines3.common.logger import configure
+
+    from zerith_gym.callbacks import RewardTermsLogger
+
+    env = zerith_gym.make_vec_env(4, seed=0, obs_mode="policy", episode_steps=16, workers=0)
+    model = PPO(
+        "MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8])
+    )
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(128, callback=RewardTermsLogger())
+
+    with open(tmp_path / "progress.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2
+    for row in rows:  # every episode lasts 16 steps or falls before: one rollout holds 4 or more endings
+        assert 0.0 <= float(row["terms/fall_rate"]) <= 1.0 and float(row["terms/lin_vel_error"]) > 0.0
+        assert 0.0 < float(row["terms/alive"]) <= 0.5 * 0.02 * 16 + 1e-9  # weight x dt x episode length
+        assert all(f"terms/{name}" in row for name in zerith_gym.REWARD_NAMES)

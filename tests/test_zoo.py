@@ -98,7 +98,14 @@ def test_train_writes_model_evaluations_and_tensorboard(zerith_run: Path) -> Non
     assert (run_folder / "evaluations.npz").is_file()  # --eval-freq
     args = yaml.load((run_folder / "Zerith1-v0" / "args.yml").read_text(), Loader=yaml.UnsafeLoader)
     assert args["seed"] == 7
-    assert list((zerith_run / "tb" / "Zerith1-v0").rglob("events.out.tfevents.*"))  # --tensorboard-log
+    events = list((zerith_run / "tb" / "Zerith1-v0").rglob("events.out.tfevents.*"))  # --tensorboard-log
+    assert events
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    tags = set().union(*(EventAccumulator(str(path)).Reload().Tags()["scalars"] for path in events))
+    assert (
+        "terms/lin_vel_error" in tags
+    )  # the preset's `callback:` entry, zerith_gym.callbacks.RewardTermsLogger
     model = HuRiPPO.load(run_folder / "Zerith1-v0.zip", device="cpu")
     assert model.variant == "huri"
     assert model.num_timesteps >= 512
