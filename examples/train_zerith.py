@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, read_preset
 from zerith_gym.callbacks import RewardTermsLogger
 from zerith_gym.randomization import NOMINAL, RandomizationRanges
 from zerith_gym.scenarios import Scenario, get_scenario
@@ -39,41 +40,6 @@ from zerith_gym.scenarios import Scenario, get_scenario
 ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_PRESET = ROOT / "hyperparams" / "huri.yml"
-ALGOS = {
-    "huri": "huri",
-    "huri-baseline": "baseline",
-    "huri-cvar0.5": "cvar0.5",
-    "huri-no-rnd": "huri-no-rnd",
-    "huri-no-iqr": "huri-no-iqr",
-    "huri-cvar": "huri-cvar",
-}
-"""RL Zoo algorithm name (the folder the run is written to) -> HuRiPPO variant."""
-_NOT_ALGORITHM_ARGS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback")
-
-
-def load_preset(path: Path, env_id: str = ENV_ID) -> dict[str, Any]:
-    """The preset of `env_id` in an RL Zoo hyperparameter file."""
-    with open(path) as f:
-        presets = yaml.safe_load(f)
-    if env_id not in presets:
-        raise ValueError(f"{path} has no preset for {env_id!r}; presets: {', '.join(presets)}")
-    return dict(presets[env_id])
-
-
-def algorithm_kwargs(preset: dict[str, Any]) -> dict[str, Any]:
-    """HuRiPPO keyword arguments from a preset, evaluating `policy_kwargs` as RL Zoo does."""
-    kwargs = {k: v for k, v in preset.items() if k not in _NOT_ALGORITHM_ARGS}
-    if isinstance(kwargs.get("policy_kwargs"), str):
-        kwargs["policy_kwargs"] = eval(kwargs["policy_kwargs"], {"nn": th.nn, "th": th})
-    return kwargs
-
-
-def normalize_kwargs(preset: dict[str, Any]) -> dict[str, Any] | None:
-    """VecNormalize keyword arguments of a preset's `normalize` entry (None: no normalization)."""
-    value = preset.get("normalize", False)
-    if isinstance(value, str):
-        return eval(value)
-    return {} if value else None
 
 
 def next_run_folder(log_folder: Path, algo: str) -> Path:
@@ -142,7 +108,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--algo", default="huri", choices=list(ALGOS), help="method (RL Zoo algorithm name)")
+    parser.add_argument(
+        "--algo", default="huri", choices=list(METHODS), help="method (RL Zoo algorithm name)"
+    )
     parser.add_argument("-conf", "--conf-file", type=Path, default=DEFAULT_PRESET, help="hyperparameter file")
     parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="override the preset's budget")
     parser.add_argument("--seed", type=int, default=0)
@@ -172,7 +140,7 @@ def main() -> None:
     args = parser.parse_args()
     th.set_num_threads(args.threads)
 
-    preset = load_preset(args.conf_file)
+    preset = read_preset(ENV_ID, args.conf_file)
     budget = args.n_timesteps or int(preset["n_timesteps"])
     env_kwargs = dict(preset.get("env_kwargs") or {})
     scenario = get_scenario(env_kwargs.pop("scenario", "train"))
@@ -209,7 +177,7 @@ def main() -> None:
         model = HuRiPPO(
             preset["policy"],
             env,
-            variant=ALGOS[args.algo],
+            variant=METHODS[args.algo],
             seed=args.seed,
             tensorboard_log=args.tensorboard_log,
             verbose=1,

@@ -132,3 +132,37 @@ def load_run(folder: str | os.PathLike, env_id: str) -> tuple[Any, Any | None]:
     if not stats.is_file():
         return model, None
     return model, VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
+
+
+ZOO_ONLY_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback", "frame_stack")
+"""Preset entries RL Zoo reads itself; the others are the algorithm's keyword arguments."""
+
+
+def read_preset(env_id: str, path: str | os.PathLike | None = None) -> dict[str, Any]:
+    """The preset of `env_id` in an RL Zoo hyperparameter file (default: the packaged ``huri.yml``)."""
+    import yaml
+
+    path = Path(path or PRESETS_FILE)
+    with open(path) as f:
+        presets = yaml.safe_load(f)
+    if env_id not in presets:
+        raise ValueError(f"{path} has no preset for {env_id!r}; presets: {', '.join(presets)}")
+    return dict(presets[env_id])
+
+
+def algorithm_kwargs(preset: dict[str, Any]) -> dict[str, Any]:
+    """The algorithm's keyword arguments of a preset, with ``policy_kwargs`` evaluated as RL Zoo does."""
+    import torch as th
+
+    kwargs = {k: v for k, v in preset.items() if k not in ZOO_ONLY_KEYS}
+    if isinstance(kwargs.get("policy_kwargs"), str):
+        kwargs["policy_kwargs"] = eval(kwargs["policy_kwargs"], {"nn": th.nn, "th": th})
+    return kwargs
+
+
+def normalize_kwargs(preset: dict[str, Any]) -> dict[str, Any] | None:
+    """``VecNormalize`` keyword arguments of a preset's ``normalize`` entry (None: no normalization)."""
+    value = preset.get("normalize", False)
+    if isinstance(value, str):
+        return eval(value)
+    return {} if value else None
