@@ -14,6 +14,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_huri import VARIANTS, HuRiPolicy, HuRiPPO
 
 SMALL = dict(n_steps=32, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
+# Most tests learn on raw rewards on purpose (small, exact checks); the warning has its own test.
+pytestmark = pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
 
 
 class PendulumWithCritic(gym.ObservationWrapper):
@@ -149,17 +151,31 @@ def test_assess_risk_reports_sorted_atoms_and_the_variants_risk(variant):
     model.learn(32)
     first_obs = {key: obs[0] for key, obs in model.rollout_buffer.observations.items()}
     assessment = model.assess_risk(first_obs)
-    assert assessment.atoms.shape == (1, model.n_quantiles)
-    assert (np.diff(assessment.atoms, axis=-1) >= 0).all()
-    assert assessment.atoms.min() <= assessment.value[0] <= assessment.atoms.max()
+    # One observation gives unbatched results, as SB3's predict does.
+    assert assessment.atoms.shape == (model.n_quantiles,)
+    assert all(np.ndim(field) == 0 for field in assessment[1:])
+    assert (np.diff(assessment.atoms) >= 0).all()
+    assert assessment.atoms.min() <= assessment.value <= assessment.atoms.max()
     if variant == "huri-no-rnd":
-        assert assessment.risk[0] in (-1.0, 0.0, 1.0)
+        assert assessment.risk in (-1.0, 0.0, 1.0)
     elif variant == "huri":
-        iqr_level = assessment.risk[0] - np.tanh(assessment.rnd_error[0])
-        assert assessment.rnd_error[0] > 0 and min(abs(iqr_level - level) for level in (-1, 0, 1)) < 1e-5
+        iqr_level = assessment.risk - np.tanh(assessment.rnd_error)
+        assert assessment.rnd_error > 0 and min(abs(iqr_level - level) for level in (-1, 0, 1)) < 1e-5
     elif variant == "cvar0.5":
-        assert assessment.risk[0] == 0.5
-        assert assessment.value[0] == pytest.approx(assessment.atoms[0, :32].mean(), rel=1e-5)
+        assert assessment.risk == 0.5
+        assert assessment.value == pytest.approx(assessment.atoms[:32].mean(), rel=1e-5)
+
+
+def test_assess_risk_of_a_batch_has_one_row_per_observation_and_matches_single_calls():
+    model = HuRiPPO("MlpPolicy", dict_env(n_envs=1), seed=0, **SMALL).learn(32)
+    batch = {key: obs[:5] for key, obs in model.rollout_buffer.observations.items()}
+    assessment = model.assess_risk(batch)
+    assert assessment.atoms.shape == (5, model.n_quantiles)
+    assert all(field.shape == (5,) for field in assessment[1:])
+    for row in range(5):
+        single = model.assess_risk({key: obs[row] for key, obs in batch.items()})
+        for batched_field, single_field in zip(assessment, single, strict=True):
+            np.testing.assert_allclose(batched_field[row], single_field, rtol=1e-5, atol=1e-6)
 
 
 # --- logging ----------------------------------------------------------------------------------------
@@ -172,12 +188,26 @@ def test_risk_and_loss_keys_are_logged():
     model.learn(128)
     expected = {
         *("rollout/beta_mean", "rollout/iqr_mean", "rollout/rnd_error", "rollout/beta_iqr_averse"),
+        *("rollout/beta_iqr_mean", "rollout/beta_rnd_mean"),
         *("rollout/beta_iqr_neutral", "rollout/beta_iqr_seeking", "train/quantile_loss"),
         *("train/expectation_loss", "train/rnd_loss", "train/policy_gradient_loss", "train/value_loss"),
     }
     assert expected <= recorder.records.keys()
     shares = [recorder.records[f"rollout/beta_iqr_{kind}"][-1] for kind in ("averse", "neutral", "seeking")]
     assert sum(shares) == pytest.approx(1.0)
+    # beta = beta_IQR + beta_RND, and the IQR part is the shares weighted by the risk levels (-1, 0, 1).
+    records = {key: np.array(values) for key, values in recorder.records.items()}
+    np.testing.assert_allclose(
+        records["rollout/beta_mean"],
+        records["rollout/beta_iqr_mean"] + records["rollout/beta_rnd_mean"],
+        rtol=1e-5,
+    )
+    np.testing.assert_allclose(
+        records["rollout/beta_iqr_mean"],
+        records["rollout/beta_iqr_averse"] - records["rollout/beta_iqr_seeking"],
+        atol=1e-6,
+    )
+    assert (records["rollout/beta_rnd_mean"] > 0).all() and (records["rollout/beta_rnd_mean"] <= 1).all()
 
 
 class InitCounter(BaseCallback):
@@ -323,7 +353,11 @@ def test_cuda_device():
         (dict(n_minibatches=200), "n_minibatches"),
         (dict(gamma=1.5), "gamma"),
         (dict(variant="baseline", use_rnd=True), "use_rnd"),
-        (dict(policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
+        (dict(n_quantiles=16, policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
+        (dict(variant="baseline", policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
+        (dict(rnd_kwargs=dict(output_dim=8), policy_kwargs=dict(rnd_kwargs={})), "rnd_kwargs"),
+        (dict(expectation_loss="self"), "expectation_loss"),
+        (dict(desired_kl=0.0), "desired_kl"),
         (dict(iqr_risk_levels=(1.0, 0.0)), "iqr_risk_levels"),
     ],
 )

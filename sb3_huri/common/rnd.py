@@ -15,11 +15,16 @@ from torch import nn
 class RandomNetworkDistillation(nn.Module):
     """A frozen random target network ``g`` and a predictor ``f`` trained to imitate it.
 
-    The prediction error ``mean_k (f(s)_k - g(s)_k)^2`` (paper eq. 9, averaged over the output units) is
-    large on states unlike those the predictor was trained on. Inputs are standardized with running
-    statistics (SB3's ``RunningMeanStd``) and clipped, so the error does not depend on the input scale.
-    The normalizer statistics are part of ``state_dict()`` (as the module's extra state) and the predictor
-    has its own Adam optimizer (``self.optimizer``), so both travel with a saved model.
+    The prediction error ``||f(s) - g(s)||^2`` (paper eq. 9) is large on states unlike those the predictor
+    was trained on. Inputs are standardized with running statistics (SB3's ``RunningMeanStd``) and clipped,
+    so the error does not depend on the input scale. The error is then divided by the running total variance
+    of the target's outputs, ``sum_k Var(g_k)`` (a second ``RunningMeanStd``), so that its scale means the
+    same thing for any network size and input: about 1 or more for a state the predictor has never been
+    trained on (an untrained predictor explains none of the target), falling towards 0 as the state becomes
+    familiar. Unnormalized, the error of a 16-output target on standardized inputs is a few thousandths,
+    and ``tanh`` of it (paper eq. 10) is negligible next to the IQR's risk levels of -1, 0 and 1.
+    Both sets of statistics are part of ``state_dict()`` (as the module's extra state) and the predictor has
+    its own Adam optimizer (``self.optimizer``), so they travel with a saved model.
 
     :param input_dim: size of the (flat) critic state
     :param target_net_arch: hidden layer sizes of the target network (paper: [32, 32])
@@ -28,6 +33,8 @@ class RandomNetworkDistillation(nn.Module):
     :param learning_rate: Adam learning rate of the predictor (paper: 1e-3)
     :param clip_obs: normalized inputs are clipped to ``[-clip_obs, clip_obs]``
     :param activation_fn: activation after each hidden layer
+    :param normalize_error: divide the error by the target outputs' running total variance; ``False`` gives
+        the mean squared error over the outputs, unscaled
     """
 
     def __init__(
@@ -39,20 +46,26 @@ class RandomNetworkDistillation(nn.Module):
         learning_rate: float = 1e-3,
         clip_obs: float = 5.0,
         activation_fn: type[nn.Module] = nn.LeakyReLU,
+        normalize_error: bool = True,
     ):
         super().__init__()
         self.clip_obs = clip_obs
+        self.normalize_error = normalize_error
         self.target = nn.Sequential(*create_mlp(input_dim, output_dim, list(target_net_arch), activation_fn))
         self.target.requires_grad_(False)
         self.predictor = nn.Sequential(
             *create_mlp(input_dim, output_dim, list(predictor_net_arch), activation_fn)
         )
         self.obs_rms = RunningMeanStd(shape=(input_dim,))
+        # Starts at unit variance: until the first update the error is the mean over the outputs.
+        self.target_rms = RunningMeanStd(shape=(output_dim,))
         self.optimizer = th.optim.Adam(self.predictor.parameters(), lr=learning_rate)
 
     def update_normalizer(self, inputs: th.Tensor) -> None:
-        """Add a batch of critic states ``(B, input_dim)`` to the running input statistics."""
+        """Add a batch of critic states ``(B, input_dim)`` to the input and target-output statistics."""
         self.obs_rms.update(inputs.detach().cpu().numpy())
+        with th.no_grad():
+            self.target_rms.update(self.target(self.normalize(inputs)).cpu().numpy())
 
     def normalize(self, inputs: th.Tensor) -> th.Tensor:
         """Standardize with the running statistics and clip."""
@@ -64,9 +77,17 @@ class RandomNetworkDistillation(nn.Module):
         return (self.predictor(normalized) - self.target(normalized)).pow(2).mean(dim=-1)
 
     def prediction_error(self, inputs: th.Tensor) -> th.Tensor:
-        """Novelty of each critic state, shape ``(B,)``, without gradient."""
+        """Novelty of each critic state, shape ``(B,)``, without gradient.
+
+        ``||f(s) - g(s)||^2 / sum_k Var(g_k)`` with ``normalize_error`` (the default), else
+        ``mean_k (f(s)_k - g(s)_k)^2``.
+        """
         with th.no_grad():
-            return self._squared_error(self.normalize(inputs))
+            error = self._squared_error(self.normalize(inputs))
+        if self.normalize_error:
+            # mean_k (f - g)^2 / mean_k Var(g_k) = ||f - g||^2 / sum_k Var(g_k)
+            error = error / float(np.mean(self.target_rms.var) + 1e-8)
+        return error
 
     def fit(self, inputs: th.Tensor, n_epochs: int, batch_size: int) -> float:
         """Train the predictor on a batch of critic states; returns the mean loss of the last epoch."""
@@ -85,16 +106,20 @@ class RandomNetworkDistillation(nn.Module):
         return float(np.mean(losses))
 
     def get_extra_state(self) -> dict[str, th.Tensor]:
-        return {
-            "mean": th.as_tensor(self.obs_rms.mean),
-            "var": th.as_tensor(self.obs_rms.var),
-            "count": th.tensor(float(self.obs_rms.count), dtype=th.float64),
-        }
+        state = {}
+        for prefix, rms in (("", self.obs_rms), ("target_", self.target_rms)):
+            state[f"{prefix}mean"] = th.as_tensor(rms.mean)
+            state[f"{prefix}var"] = th.as_tensor(rms.var)
+            state[f"{prefix}count"] = th.tensor(float(rms.count), dtype=th.float64)
+        return state
 
     def set_extra_state(self, state: dict[str, Any]) -> None:
-        self.obs_rms.mean = state["mean"].cpu().numpy().astype(np.float64)
-        self.obs_rms.var = state["var"].cpu().numpy().astype(np.float64)
-        self.obs_rms.count = float(state["count"])
+        # Models saved before the target statistics existed keep unit variance until their next rollout.
+        for prefix, rms in (("", self.obs_rms), ("target_", self.target_rms)):
+            if f"{prefix}mean" in state:
+                rms.mean = state[f"{prefix}mean"].cpu().numpy().astype(np.float64)
+                rms.var = state[f"{prefix}var"].cpu().numpy().astype(np.float64)
+                rms.count = float(state[f"{prefix}count"])
 
 
 class RNDTrainingCallback(BaseCallback):

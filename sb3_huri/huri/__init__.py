@@ -1,6 +1,6 @@
 """HuRiPPO: adaptive risk-aware distributional PPO."""
 
-from sb3_huri.huri.huri import HuRiPPO, RiskAssessment
+from sb3_huri.huri.huri import HuRiPPO, RiskAssessment, UnnormalizedRewardWarning
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.variants import VARIANTS, RiskPreset
 
@@ -12,4 +12,5 @@ __all__ = [
     "MultiInputPolicy",
     "RiskAssessment",
     "RiskPreset",
+    "UnnormalizedRewardWarning",
 ]

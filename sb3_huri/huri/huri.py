@@ -1,37 +1,50 @@
 """HuRiPPO: adaptive risk-aware distributional PPO (HuRi) as a Stable-Baselines3 on-policy algorithm."""
 
 import warnings
+from collections import defaultdict
+from collections.abc import Callable
 from typing import Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
+from gymnasium.wrappers import NormalizeReward
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
-from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.utils import (
+    FloatSchedule,
+    explained_variance,
+    obs_as_tensor,
+    update_learning_rate,
+)
+from stable_baselines3.common.vec_env import VecEnv, unwrap_vec_normalize
 from torch.nn import functional as F
 
-from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
+from sb3_huri.common.distortion import distortion_weights
 from sb3_huri.common.energy import energy_distance
+from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
 from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
 from sb3_huri.common.rnd import RNDTrainingCallback
-from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer
+from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
-from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, VARIANTS, RiskPreset
+from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, resolve_variant
 
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
 
 SUPPORTED_ACTION_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
 
 
+class UnnormalizedRewardWarning(UserWarning):
+    """HuRiPPO learns on an env whose rewards are not normalized, so the IQR thresholds may be meaningless."""
+
+
 class RiskAssessment(NamedTuple):
-    """The critic's view of a batch of observations (numpy arrays, one row per observation)."""
+    """The critic's view of observations (numpy): one row per observation for a batch, unbatched for one."""
 
     atoms: np.ndarray
-    """Predicted return atoms, sorted, shape ``(batch, n_quantiles)``."""
+    """Predicted return atoms, sorted, shape ``(batch, n_quantiles)`` (one observation: ``(N,)``)."""
     value: np.ndarray
     """Distorted value ``V_beta``, the value the advantages use."""
     risk: np.ndarray
@@ -39,7 +52,20 @@ class RiskAssessment(NamedTuple):
     iqr: np.ndarray
     """Interquartile range of the atoms."""
     rnd_error: np.ndarray
-    """RND novelty of the critic input (zero without RND)."""
+    """RND novelty of the critic input (zero without RND); ``beta_RND = tanh(rnd_error)``."""
+
+
+class _Risk(NamedTuple):
+    """Everything the risk machinery computes for a batch of states (torch tensors, one row per state)."""
+
+    atoms: th.Tensor
+    value: th.Tensor
+    risk: th.Tensor
+    weights: th.Tensor
+    iqr: th.Tensor
+    rnd_error: th.Tensor
+    beta_iqr: th.Tensor
+    beta_rnd: th.Tensor
 
 
 class HuRiPPO(OnPolicyAlgorithm):
@@ -55,8 +81,10 @@ class HuRiPPO(OnPolicyAlgorithm):
 
     :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
         and ``Dict`` observations) or a :class:`HuRiPolicy` subclass
-    :param env: the environment to learn from (if registered in Gymnasium, can be a str)
-    :param learning_rate: learning rate, a float or a schedule of the progress remaining (from 1 to 0)
+    :param env: the environment to learn from (if registered in Gymnasium, can be a str); normalize its
+        rewards (``VecNormalize``): the IQR thresholds are in units of normalized returns
+    :param learning_rate: learning rate, a float or a schedule of the progress remaining (from 1 to 0);
+        with ``desired_kl``, the initial learning rate
     :param n_steps: steps per environment per rollout
     :param batch_size: minibatch size; ``None`` splits each rollout into ``n_minibatches`` minibatches
     :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None``
@@ -71,9 +99,13 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param use_sde: use generalized state-dependent exploration
     :param sde_sample_freq: resample the gSDE noise matrix every n steps (-1: once per rollout)
     :param target_kl: stop an update early when the approximate KL divergence exceeds ``1.5 * target_kl``
+    :param desired_kl: adapt the learning rate to this KL per minibatch (divided by 1.5 above twice the
+        KL, multiplied by 1.5 below half of it, within ``kl_learning_rate_bounds``), as legged-robot PPO
+        trainers do; ``None`` follows ``learning_rate``
     :param variant: preset, one of ``baseline``, ``cvar0.5``, ``huri-no-rnd``, ``huri-no-iqr``, ``huri``,
         ``huri-cvar`` (see ``sb3_huri.huri.variants``)
-    :param n_quantiles: number of critic atoms ``N`` (ignored by ``baseline``, whose critic is scalar)
+    :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
+        given, else 64 (ignored by ``baseline``, whose critic is scalar)
     :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the variant's
     :param use_iqr: risk parameter from the IQR band; ``None`` takes the variant's
     :param use_rnd: add ``tanh(RND error)`` to the risk parameter; ``None`` takes the variant's
@@ -85,13 +117,15 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
     :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
-    :param rnd_learning_rate: Adam learning rate of the RND predictor
-    :param rnd_target_net_arch: hidden sizes of the RND target network
-    :param rnd_predictor_net_arch: hidden sizes of the RND predictor network
-    :param rnd_output_dim: size of the RND embedding
+    :param expectation_loss: ``"target"``: the predicted mean against the target atoms' mean; ``"distorted"``:
+        the predicted mean against its own distorted mean (eq. 5 as printed, a spread penalty)
+    :param rnd_kwargs: keyword arguments of the :class:`~sb3_huri.common.rnd.RandomNetworkDistillation`
+        (``target_net_arch``, ``predictor_net_arch``, ``output_dim``, ``learning_rate``, ``normalize_error``,
+        ...); ``None`` takes ``policy_kwargs["rnd_kwargs"]`` if given, else its defaults (the paper's)
     :param stats_window_size: episodes averaged in the rollout logs
     :param tensorboard_log: tensorboard log folder (None: no logging)
-    :param policy_kwargs: extra arguments of the policy (e.g. ``net_arch``, ``activation_fn``)
+    :param policy_kwargs: extra arguments of the policy (e.g. ``net_arch``, ``activation_fn``); may hold
+        ``n_quantiles`` and ``rnd_kwargs``, as ``model.policy_kwargs`` does, if they agree with the above
     :param verbose: 0 silent, 1 info, 2 debug
     :param seed: random seed
     :param device: ``"cpu"``, ``"cuda"``, ``"auto"``...
@@ -104,6 +138,8 @@ class HuRiPPO(OnPolicyAlgorithm):
     }
     policy: HuRiPolicy
     rollout_buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer
+    kl_learning_rate_bounds: ClassVar[tuple[float, float]] = (1e-5, 1e-2)
+    """Range of the KL-adaptive learning rate (``desired_kl``)."""
 
     def __init__(
         self,
@@ -124,8 +160,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         use_sde: bool = False,
         sde_sample_freq: int = -1,
         target_kl: float | None = None,
+        desired_kl: float | None = None,
         variant: str = "huri",
-        n_quantiles: int = 64,
+        n_quantiles: int | None = None,
         distortion: str | None = None,
         use_iqr: bool | None = None,
         use_rnd: bool | None = None,
@@ -136,10 +173,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         sr_lambda: float = 1.0,
         quantile_coef: float = 1.0,
         expectation_coef: float = 0.05,
-        rnd_learning_rate: float = 1e-3,
-        rnd_target_net_arch: tuple[int, ...] = (32, 32),
-        rnd_predictor_net_arch: tuple[int, ...] = (32,),
-        rnd_output_dim: int = 16,
+        expectation_loss: str = "target",
+        rnd_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -148,39 +183,38 @@ class HuRiPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        preset = _preset(variant, distortion, use_iqr, use_rnd)
-        self.variant = variant
-        self.distributional = preset.distributional
-        self.distortion = distortion if distortion is not None else preset.distortion
-        self.use_iqr = preset.use_iqr if use_iqr is None else bool(use_iqr)
-        self.use_rnd = preset.use_rnd if use_rnd is None else bool(use_rnd)
-        self.n_quantiles = n_quantiles if self.distributional else 1
-        self.wang_beta = float(wang_beta)
-        self.cvar_alpha = float(cvar_alpha)
-        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
-        default_levels = DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
-        self.iqr_risk_levels = tuple(float(v) for v in (iqr_risk_levels or default_levels))
-        self.sr_lambda = float(sr_lambda)
-        self.quantile_coef = quantile_coef
-        self.expectation_coef = expectation_coef
-        self.n_minibatches = n_minibatches
-        _check_hyperparameters(self, n_steps, n_epochs, gamma, gae_lambda, rnd_learning_rate, rnd_output_dim)
-
-        # The critic's shape and the RND module are policy arguments, so a saved model rebuilds them.
+        preset = resolve_variant(variant, distortion, use_iqr, use_rnd)
+        self.variant, self.distributional = variant, preset.distributional
+        self.distortion, self.use_iqr, self.use_rnd = preset.distortion, preset.use_iqr, preset.use_rnd
         policy_kwargs = dict(policy_kwargs or {})
-        for key in ("n_quantiles", "rnd_kwargs"):
-            if key in policy_kwargs:
-                raise ValueError(f"Pass {key} to HuRiPPO (or choose a variant), not in policy_kwargs")
-        policy_kwargs["n_quantiles"] = self.n_quantiles
-        policy_kwargs["rnd_kwargs"] = (
-            dict(
-                target_net_arch=tuple(rnd_target_net_arch),
-                predictor_net_arch=tuple(rnd_predictor_net_arch),
-                output_dim=rnd_output_dim,
-                learning_rate=rnd_learning_rate,
-            )
-            if self.use_rnd
-            else None
+        n_quantiles = _agreeing("n_quantiles", n_quantiles, policy_kwargs, default=64)
+        self.n_quantiles = n_quantiles if self.distributional else 1
+        self.rnd_kwargs = (
+            _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if self.use_rnd else None
+        )
+        self.wang_beta, self.cvar_alpha = float(wang_beta), float(cvar_alpha)
+        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
+        levels = iqr_risk_levels or DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
+        self.iqr_risk_levels = tuple(float(v) for v in levels)
+        self.sr_lambda = float(sr_lambda)
+        self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
+        self.expectation_loss = expectation_loss
+        self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
+        _check_hyperparameters(
+            n_steps=n_steps,
+            n_epochs=n_epochs,
+            n_minibatches=n_minibatches,
+            gamma=gamma,
+            gae_lambda=gae_lambda,
+            sr_lambda=self.sr_lambda,
+            cvar_alpha=self.cvar_alpha,
+            quantile_coef=quantile_coef,
+            expectation_coef=expectation_coef,
+            expectation_loss=expectation_loss,
+            desired_kl=desired_kl,
+            iqr_thresholds=self.iqr_thresholds,
+            iqr_risk_levels=self.iqr_risk_levels,
+            **({"n_quantiles": self.n_quantiles} if self.distributional else {}),
         )
         if isinstance(policy, str):
             # Both aliases name the same class: resolving it here lets "MlpPolicy" take Dict observations.
@@ -225,6 +259,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     def _setup_model(self) -> None:
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
+        self._complete_policy_kwargs()
         buffer_class = (
             HuRiDictRolloutBuffer if isinstance(self.observation_space, spaces.Dict) else HuRiRolloutBuffer
         )
@@ -248,6 +283,26 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
         self.policy = self.policy.to(self.device)
         self.clip_range = FloatSchedule(self.clip_range)
+        if self.desired_kl is not None and getattr(self, "kl_learning_rate", None) is None:
+            self.kl_learning_rate = self.lr_schedule(1.0)
+
+    def _complete_policy_kwargs(self) -> None:
+        """Put the critic's width and the RND settings into ``policy_kwargs``, so a saved model rebuilds them.
+
+        Run at setup rather than construction, so that ``load(..., custom_objects={"policy_kwargs": ...})``
+        with only network options still gets the saved model's critic and RND.
+        """
+        kwargs = dict(self.policy_kwargs)
+        if kwargs.setdefault("n_quantiles", self.n_quantiles) != self.n_quantiles:
+            raise ValueError(
+                f"policy_kwargs['n_quantiles']={kwargs['n_quantiles']} does not match the critic of "
+                f"variant={self.variant!r} ({self.n_quantiles} atoms)"
+            )
+        rnd_kwargs = kwargs.get("rnd_kwargs")
+        kwargs["rnd_kwargs"] = (
+            (rnd_kwargs if rnd_kwargs is not None else self.rnd_kwargs) if self.use_rnd else None
+        )
+        self.policy_kwargs = kwargs
 
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
         if self.policy.rnd is not None:
@@ -259,6 +314,23 @@ class HuRiPPO(OnPolicyAlgorithm):
                 callback = [callback if isinstance(callback, BaseCallback) else ConvertCallback(callback)]
             callback = [RNDTrainingCallback(), *callback]
         return super()._init_callback(callback, progress_bar)
+
+    def _setup_learn(self, total_timesteps: int, *args: Any, **kwargs: Any) -> tuple[int, BaseCallback]:
+        if (
+            self.distributional
+            and self.use_iqr
+            and self.env is not None
+            and not _normalizes_rewards(self.env)
+        ):
+            warnings.warn(
+                f"HuRiPPO's IQR thresholds {self.iqr_thresholds} are in units of normalized returns, but the "
+                "env does not normalize its rewards: wrap it with VecNormalize(env, norm_reward=True) "
+                "(RL Zoo: `normalize: true`), or set iqr_thresholds for your return scale and silence this "
+                "UnnormalizedRewardWarning",
+                UnnormalizedRewardWarning,
+                stacklevel=4,
+            )
+        return super()._setup_learn(total_timesteps, *args, **kwargs)
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts, variables = super()._get_torch_save_params()
@@ -335,111 +407,123 @@ class HuRiPPO(OnPolicyAlgorithm):
         """Risk parameters, distorted values, advantages and critic targets for the collected rollout.
 
         All states (the rollout's, the next ones and the final states of truncated episodes) are assessed
-        in one batch: IQR of their sorted atoms, RND novelty of their critic input, and distortion weights.
+        in one batch. The RND input statistics are updated with the rollout before its novelty is measured.
         """
         n_rollout = buffer.buffer_size * buffer.n_envs
         extra_obs = [last_obs] + [_add_batch_axis(obs) for _, _, obs in time_outs]
         with th.no_grad():
             extra = obs_as_tensor(_concatenate_observations(extra_obs), self.device)
-            extra_atoms = th.sort(self.policy.predict_values(extra), dim=-1).values
-            atoms = th.cat(
-                (th.as_tensor(buffer.atoms, device=self.device).reshape(n_rollout, -1), extra_atoms)
-            )
+            rollout_atoms = th.as_tensor(buffer.atoms, device=self.device).reshape(n_rollout, -1)
+            outputs = th.cat((rollout_atoms, self.policy.predict_values(extra)))
+            critic_inputs = None
             if self.policy.rnd is not None:
-                rollout_inputs = self.policy.critic_features(
-                    obs_as_tensor(buffer.flat_observations(), self.device)
-                )
+                rollout_obs = obs_as_tensor(buffer.flat_observations(), self.device)
+                rollout_inputs = self.policy.critic_features(rollout_obs)
                 self.policy.rnd.update_normalizer(rollout_inputs)
-                inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
-                rnd_error = self.policy.rnd.prediction_error(inputs)
-            else:
-                rnd_error = th.zeros(len(atoms), device=self.device)
-            risk, weights, iqr = self._assess_risk(atoms, rnd_error)
-            values = (weights * atoms).sum(dim=-1)
+                critic_inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
+            assessed = self._assess(outputs, critic_inputs)
 
-        to_numpy = lambda tensor: tensor.cpu().numpy()  # noqa: E731
+        rollout = _Risk(*(to_numpy(tensor[:n_rollout]) for tensor in assessed))
         shape = (buffer.buffer_size, buffer.n_envs)
         buffer.set_risk(
-            to_numpy(weights[:n_rollout]).reshape(*shape, -1),
-            to_numpy(risk[:n_rollout]).reshape(shape),
-            to_numpy(iqr[:n_rollout]).reshape(shape),
-            to_numpy(rnd_error[:n_rollout]).reshape(shape),
+            rollout.weights.reshape(*shape, -1),
+            rollout.risk.reshape(shape),
+            rollout.iqr.reshape(shape),
+            rollout.rnd_error.reshape(shape),
         )
         n_last = buffer.n_envs
         if time_outs:
             steps, envs = np.array([t[0] for t in time_outs]), np.array([t[1] for t in time_outs])
             first = n_rollout + n_last
-            buffer.set_time_out_bootstrap(steps, envs, to_numpy(atoms[first:]), to_numpy(values[first:]))
+            buffer.set_time_out_bootstrap(
+                steps, envs, to_numpy(assessed.atoms[first:]), to_numpy(assessed.value[first:])
+            )
         buffer.compute_returns_and_advantage(
-            last_values=values[n_rollout : n_rollout + n_last],
+            last_values=assessed.value[n_rollout : n_rollout + n_last],
             dones=dones,
-            last_atoms=to_numpy(atoms[n_rollout : n_rollout + n_last]),
+            last_atoms=to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
         )
         if self.distributional:
-            self._record_risk(buffer)
+            self._record_risk(rollout)
 
     def assess_risk(self, observation: np.ndarray | dict[str, np.ndarray]) -> RiskAssessment:
         """Return distribution, risk parameter and distorted value the critic gives to observations.
 
         For analysis, e.g. tracking ``beta`` and the value distribution along an episode (paper Fig. 5).
         Observations are taken as the policy sees them (normalized already when training used
-        ``VecNormalize``); a single observation or a batch.
+        ``VecNormalize``). As with ``predict``, a batch gives one row per observation, and a single
+        observation unbatched results: atoms of shape ``(n_quantiles,)`` and scalars.
         """
-        obs_tensor, _ = self.policy.obs_to_tensor(observation)
+        obs_tensor, vectorized = self.policy.obs_to_tensor(observation)
         with th.no_grad():
-            atoms = th.sort(self.policy.predict_values(obs_tensor), dim=-1).values
-            if self.policy.rnd is not None:
-                rnd_error = self.policy.rnd.prediction_error(self.policy.critic_features(obs_tensor))
-            else:
-                rnd_error = th.zeros(len(atoms), device=self.device)
-            risk, weights, iqr = self._assess_risk(atoms, rnd_error)
-            value = (weights * atoms).sum(dim=-1)
-        return RiskAssessment(*(tensor.cpu().numpy() for tensor in (atoms, value, risk, iqr, rnd_error)))
+            rnd = self.policy.rnd
+            assessed = self._assess(
+                self.policy.predict_values(obs_tensor),
+                self.policy.critic_features(obs_tensor) if rnd is not None else None,
+            )
+        arrays = [
+            to_numpy(tensor) for tensor in (assessed.atoms, assessed.value, assessed.risk, assessed.iqr)
+        ]
+        arrays.append(to_numpy(assessed.rnd_error))
+        return RiskAssessment(*(array if vectorized else array[0] for array in arrays))
 
-    def _assess_risk(self, atoms: th.Tensor, rnd_error: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
-        """Per state: risk parameter, distortion weights over its sorted atoms, and IQR.
+    def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> _Risk:
+        """Sort the atoms, then per state: IQR, RND novelty, risk parameter, distortion weights, ``V_beta``.
 
         ``risk = (beta_IQR if use_iqr else the fixed parameter) + (tanh(RND error) if use_rnd)``
         (paper eqs. 10-11); the scalar critic of ``baseline`` gets weight 1 on its single atom.
+
+        :param outputs: critic outputs, shape ``(B, n_quantiles)``, in any order
+        :param critic_inputs: the critic's flat inputs ``(B, features)`` for RND; ``None`` without RND
         """
+        atoms = th.sort(outputs, dim=-1).values
         iqr = interquartile_range(atoms)
+        rnd = self.policy.rnd
+        rnd_error = (
+            rnd.prediction_error(critic_inputs) if rnd is not None and critic_inputs is not None else None
+        )
+        if rnd_error is None:
+            rnd_error = th.zeros_like(iqr)
+        zeros = th.zeros_like(iqr)
         if not self.distributional:
-            return th.zeros_like(iqr), th.ones_like(atoms), iqr
+            return _Risk(atoms, atoms[:, 0], zeros, th.ones_like(atoms), iqr, rnd_error, zeros, zeros)
         if self.use_iqr:
-            risk = iqr_risk_level(iqr, self.iqr_thresholds, self.iqr_risk_levels)  # type: ignore[arg-type]
+            beta_iqr = iqr_risk_level(iqr, self.iqr_thresholds, self.iqr_risk_levels)  # type: ignore[arg-type]
         else:
-            risk = th.full_like(iqr, self.wang_beta if self.distortion == "wang" else self.cvar_alpha)
-        if self.use_rnd:
-            risk = risk + th.tanh(rnd_error)
+            beta_iqr = th.full_like(iqr, self.wang_beta if self.distortion == "wang" else self.cvar_alpha)
+        beta_rnd = th.tanh(rnd_error) if self.use_rnd else zeros
+        risk = beta_iqr + beta_rnd
         if self.distortion == "cvar":
             risk = th.clamp(risk, max=1.0)
-        return risk, distortion_weights(self.distortion, risk, self.n_quantiles), iqr
+        weights = distortion_weights(self.distortion, risk, self.n_quantiles)
+        return _Risk(atoms, (weights * atoms).sum(dim=-1), risk, weights, iqr, rnd_error, beta_iqr, beta_rnd)
 
-    def _record_risk(self, buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer) -> None:
+    def _record_risk(self, rollout: _Risk) -> None:
         t_min, t_max = self.iqr_thresholds
-        self.logger.record("rollout/beta_mean", float(buffer.risk.mean()))
-        self.logger.record("rollout/iqr_mean", float(buffer.iqr.mean()))
-        self.logger.record("rollout/beta_iqr_averse", float((buffer.iqr > t_max).mean()))
-        self.logger.record(
-            "rollout/beta_iqr_neutral", float(((buffer.iqr >= t_min) & (buffer.iqr <= t_max)).mean())
-        )
-        self.logger.record("rollout/beta_iqr_seeking", float((buffer.iqr < t_min).mean()))
+        iqr = rollout.iqr
+        self.logger.record("rollout/beta_mean", float(rollout.risk.mean()))
+        self.logger.record("rollout/beta_iqr_mean", float(rollout.beta_iqr.mean()))
+        self.logger.record("rollout/iqr_mean", float(iqr.mean()))
+        self.logger.record("rollout/beta_iqr_averse", float((iqr > t_max).mean()))
+        self.logger.record("rollout/beta_iqr_neutral", float(((iqr >= t_min) & (iqr <= t_max)).mean()))
+        self.logger.record("rollout/beta_iqr_seeking", float((iqr < t_min).mean()))
         if self.use_rnd:
-            self.logger.record("rollout/rnd_error", float(buffer.rnd_error.mean()))
+            self.logger.record("rollout/beta_rnd_mean", float(rollout.beta_rnd.mean()))
+            self.logger.record("rollout/rnd_error", float(rollout.rnd_error.mean()))
 
     def train(self) -> None:
         """One PPO update on the collected rollout (paper eq. 12).
 
-        ``loss = surrogate + vf_coef * critic_loss - ent_coef * entropy``, where the critic loss is PPO's MSE
-        for a scalar critic, and ``quantile_coef * energy_distance(atoms, SR(lambda) targets)
-        + expectation_coef * MSE(mean of atoms, distorted mean of atoms)`` for a quantile critic.
+        ``loss = surrogate + vf_coef * critic_loss - ent_coef * entropy`` (see :meth:`_critic_loss`).
+        With ``desired_kl`` the learning rate adapts to each minibatch's approximate KL before its step.
         """
         self.policy.set_training_mode(True)
-        self._update_learning_rate(self.policy.optimizer)
+        if self.desired_kl is None:
+            self._update_learning_rate(self.policy.optimizer)
+        else:
+            self._set_kl_learning_rate(self.kl_learning_rate)
         clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
-        logs: dict[str, list[float]] = {
-            key: [] for key in ("entropy", "pg", "value", "quantile", "expectation", "clip")
-        }
+        logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
         continue_training = True
 
@@ -454,22 +538,12 @@ class HuRiPPO(OnPolicyAlgorithm):
                 advantages = data.advantages
                 if self.normalize_advantage and len(advantages) > 1:
                     advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-                ratio = th.exp(log_prob - data.old_log_prob)
+                log_ratio = log_prob - data.old_log_prob
+                ratio = th.exp(log_ratio)
                 policy_loss = -th.min(
                     advantages * ratio, advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
                 ).mean()
-
-                if self.distributional:
-                    atoms = th.sort(outputs, dim=-1).values
-                    quantile_loss = energy_distance(atoms, data.target_atoms).mean()
-                    expectation_loss = F.mse_loss(
-                        atoms.mean(dim=-1), (data.distortion_weights * atoms).sum(dim=-1)
-                    )
-                    value_loss = self.quantile_coef * quantile_loss + self.expectation_coef * expectation_loss
-                    logs["quantile"].append(quantile_loss.item())
-                    logs["expectation"].append(expectation_loss.item())
-                else:
-                    value_loss = F.mse_loss(data.returns, outputs.flatten())
+                value_loss = self._critic_loss(outputs, data, logs)
                 entropy_loss = -th.mean(-log_prob) if entropy is None else -th.mean(entropy)
                 loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * value_loss
 
@@ -478,14 +552,15 @@ class HuRiPPO(OnPolicyAlgorithm):
                 logs["entropy"].append(entropy_loss.item())
                 logs["clip"].append(th.mean((th.abs(ratio - 1) > clip_range).float()).item())
                 with th.no_grad():
-                    log_ratio = log_prob - data.old_log_prob
-                    approx_kl_div = th.mean((th.exp(log_ratio) - 1) - log_ratio).item()
-                    approx_kl_divs.append(approx_kl_div)
+                    approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
+                approx_kl_divs.append(approx_kl_div)
                 if self.target_kl is not None and approx_kl_div > 1.5 * self.target_kl:
                     continue_training = False
                     if self.verbose >= 1:
                         print(f"Early stopping at step {epoch} due to reaching max kl: {approx_kl_div:.2f}")
                     break
+                if self.desired_kl is not None:
+                    self._adapt_learning_rate(approx_kl_div)
 
                 self.policy.optimizer.zero_grad()
                 loss.backward()
@@ -496,16 +571,19 @@ class HuRiPPO(OnPolicyAlgorithm):
             if not continue_training:
                 break
 
-        buffer = self.rollout_buffer
-        self.logger.record("train/entropy_loss", np.mean(logs["entropy"]))
-        self.logger.record("train/policy_gradient_loss", np.mean(logs["pg"]))
-        self.logger.record("train/value_loss", np.mean(logs["value"]))
+        for name, key in (
+            ("entropy", "entropy_loss"),
+            ("pg", "policy_gradient_loss"),
+            ("value", "value_loss"),
+        ):
+            self.logger.record(f"train/{key}", np.mean(logs[name]))
         if self.distributional:
             self.logger.record("train/quantile_loss", np.mean(logs["quantile"]))
             self.logger.record("train/expectation_loss", np.mean(logs["expectation"]))
         self.logger.record("train/approx_kl", np.mean(approx_kl_divs))
         self.logger.record("train/clip_fraction", np.mean(logs["clip"]))
         self.logger.record("train/loss", loss.item())
+        buffer = self.rollout_buffer
         self.logger.record(
             "train/explained_variance", explained_variance(buffer.values.flatten(), buffer.returns.flatten())
         )
@@ -513,6 +591,37 @@ class HuRiPPO(OnPolicyAlgorithm):
             self.logger.record("train/std", th.exp(self.policy.log_std).mean().item())
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
+        if self.desired_kl is not None:
+            self.logger.record("train/learning_rate", self.kl_learning_rate)
+
+    def _critic_loss(
+        self, outputs: th.Tensor, data: HuRiRolloutBufferSamples, logs: dict[str, list]
+    ) -> th.Tensor:
+        """The critic's loss on a minibatch: PPO's MSE for a scalar critic, and for a quantile critic
+        ``quantile_coef * energy_distance(atoms, SR(lambda) targets) + expectation_coef * expectation loss``
+        (eqs. 4, 5; ``expectation_loss`` picks the reading of eq. 5, see ``sb3_huri.common.expectation``).
+        """
+        if not self.distributional:
+            return F.mse_loss(data.returns, outputs.flatten())
+        atoms = th.sort(outputs, dim=-1).values
+        quantile_loss = energy_distance(atoms, data.target_atoms).mean()
+        mean_loss = expectation_loss(atoms, data.target_atoms, data.distortion_weights, self.expectation_loss)
+        logs["quantile"].append(quantile_loss.item())
+        logs["expectation"].append(mean_loss.item())
+        return self.quantile_coef * quantile_loss + self.expectation_coef * mean_loss
+
+    def _adapt_learning_rate(self, approx_kl: float) -> None:
+        """KL-adaptive step: a smaller learning rate when the policy moved too far, larger when too little."""
+        assert self.desired_kl is not None
+        low, high = self.kl_learning_rate_bounds
+        if approx_kl > 2.0 * self.desired_kl:
+            self._set_kl_learning_rate(max(self.kl_learning_rate / 1.5, low))
+        elif 0.0 < approx_kl < 0.5 * self.desired_kl:
+            self._set_kl_learning_rate(min(self.kl_learning_rate * 1.5, high))
+
+    def _set_kl_learning_rate(self, learning_rate: float) -> None:
+        self.kl_learning_rate = learning_rate
+        update_learning_rate(self.policy.optimizer, learning_rate)
 
     def learn(
         self: SelfHuRiPPO,
@@ -533,6 +642,10 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
 
 
+def to_numpy(tensor: th.Tensor) -> np.ndarray:
+    return tensor.cpu().numpy()
+
+
 def _add_batch_axis(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray | dict[str, np.ndarray]:
     if isinstance(obs, dict):
         return {key: np.asarray(value)[None] for key, value in obs.items()}
@@ -545,50 +658,54 @@ def _concatenate_observations(batches: list[Any]) -> np.ndarray | dict[str, np.n
     return np.concatenate(batches)
 
 
-def _preset(variant: str, distortion: str | None, use_iqr: bool | None, use_rnd: bool | None) -> RiskPreset:
-    if variant not in VARIANTS:
-        raise ValueError(f"Unknown variant {variant!r}: expected one of {list(VARIANTS)}")
-    preset = VARIANTS[variant]
-    if not preset.distributional and (distortion is not None or use_iqr or use_rnd):
+def _normalizes_rewards(env: VecEnv) -> bool:
+    """Whether the env scales its rewards: ``VecNormalize(norm_reward=True)`` or ``NormalizeReward``."""
+    normalizer = unwrap_vec_normalize(env)
+    if normalizer is not None and normalizer.norm_reward:
+        return True
+    try:
+        return any(env.env_is_wrapped(NormalizeReward))
+    except (AttributeError, NotImplementedError):
+        return False
+
+
+def _agreeing(name: str, value: Any, policy_kwargs: dict[str, Any], default: Any) -> Any:
+    """An argument ``policy_kwargs`` may carry too: the given value, else the carried one, else default."""
+    carried = policy_kwargs.get(name)
+    if value is not None and carried is not None and carried != value:
         raise ValueError(
-            "distortion, use_iqr and use_rnd need a quantile critic: variant='baseline' has a scalar critic "
-            f"(choose one of {[name for name, p in VARIANTS.items() if p.distributional]})"
+            f"{name}={value!r} conflicts with policy_kwargs['{name}']={carried!r}: pass one of them"
         )
-    if distortion is not None and distortion not in DISTORTIONS:
-        raise ValueError(f"Unknown distortion {distortion!r}: expected one of {list(DISTORTIONS)}")
-    return preset
+    return next((v for v in (value, carried) if v is not None), default)
 
 
-def _check_hyperparameters(
-    model: HuRiPPO, n_steps: int, n_epochs: int, gamma: float, gae_lambda: float, rnd_lr: float, rnd_out: int
-) -> None:
+_RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "n_steps": (lambda v: v >= 1, "an integer >= 1"),
+    "n_epochs": (lambda v: v >= 1, "an integer >= 1"),
+    "n_minibatches": (lambda v: v >= 1, "an integer >= 1"),
+    "n_quantiles": (lambda v: v >= 2, "an integer >= 2"),
+    "gamma": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
+    "gae_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
+    "sr_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
+    "cvar_alpha": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+    "quantile_coef": (lambda v: v >= 0.0, ">= 0"),
+    "expectation_coef": (lambda v: v >= 0.0, ">= 0"),
+    "expectation_loss": (lambda v: v in EXPECTATION_LOSSES, f"one of {EXPECTATION_LOSSES}"),
+    "desired_kl": (lambda v: v is None or v > 0.0, "None or > 0"),
+    "iqr_thresholds": (
+        lambda v: len(v) == 2 and 0.0 <= v[0] <= v[1],
+        "(t_min, t_max) with 0 <= t_min <= t_max",
+    ),
+    "iqr_risk_levels": (lambda v: len(v) == 3, "3 values (below, within, above)"),
+}
+"""Allowed values of the hyperparameters :func:`_check_hyperparameters` checks, and how to say so."""
+
+
+def _check_hyperparameters(**values: Any) -> None:
     """Raise a ValueError naming the first invalid hyperparameter and its allowed values."""
-    checks = [
-        ("n_steps", n_steps, n_steps >= 1, "an integer >= 1"),
-        ("n_epochs", n_epochs, n_epochs >= 1, "an integer >= 1"),
-        ("n_minibatches", model.n_minibatches, model.n_minibatches >= 1, "an integer >= 1"),
-        ("gamma", gamma, 0.0 <= gamma <= 1.0, "in [0, 1]"),
-        ("gae_lambda", gae_lambda, 0.0 <= gae_lambda <= 1.0, "in [0, 1]"),
-        ("sr_lambda", model.sr_lambda, 0.0 <= model.sr_lambda <= 1.0, "in [0, 1]"),
-        ("cvar_alpha", model.cvar_alpha, 0.0 < model.cvar_alpha <= 1.0, "in (0, 1]"),
-        ("quantile_coef", model.quantile_coef, model.quantile_coef >= 0.0, ">= 0"),
-        ("expectation_coef", model.expectation_coef, model.expectation_coef >= 0.0, ">= 0"),
-        ("rnd_learning_rate", rnd_lr, rnd_lr > 0.0, "> 0"),
-        ("rnd_output_dim", rnd_out, rnd_out >= 1, "an integer >= 1"),
-        (
-            "iqr_risk_levels",
-            model.iqr_risk_levels,
-            len(model.iqr_risk_levels) == 3,
-            "3 values (below, within, above)",
-        ),
-    ]
-    if model.distributional:
-        checks.append(("n_quantiles", model.n_quantiles, model.n_quantiles >= 2, "an integer >= 2"))
-    thresholds = model.iqr_thresholds
-    valid_thresholds = len(thresholds) == 2 and 0.0 <= thresholds[0] <= thresholds[1]
-    checks.append(("iqr_thresholds", thresholds, valid_thresholds, "(t_min, t_max) with 0 <= t_min <= t_max"))
-    for name, value, valid, allowed in checks:
-        if not valid:
+    for name, value in values.items():
+        valid, allowed = _RULES[name]
+        if not valid(value):
             raise ValueError(f"{name} must be {allowed}, got {value!r}")
 
 
