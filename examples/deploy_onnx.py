@@ -271,12 +271,14 @@ class SimulatedRobot:
         start = int(self.model.sensor_adr[sensor_id])
         return slice(start, start + int(self.model.sensor_dim[sensor_id]))
 
-    def reset(self, joint_pos: np.ndarray) -> None:
-        """Stand the robot upright in `joint_pos`, its lowest sole corner just above the ground."""
+    def reset(self, joint_pos: np.ndarray, roll: float = 0.0, pitch: float = 0.0) -> None:
+        """Stand the robot in `joint_pos`, its pelvis tilted by `roll` and `pitch` (rad), at rest, its
+        lowest sole corner just above the ground."""
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
         data.qpos[:3] = 0.0
-        data.qpos[3:7] = (1.0, 0.0, 0.0, 0.0)
+        (cr, cp), (sr, sp) = np.cos([roll / 2, pitch / 2]), np.sin([roll / 2, pitch / 2])
+        data.qpos[3:7] = (cp * cr, cp * sr, sp * cr, -sp * sr)  # pitch about y after roll about x
         data.qpos[self.qpos_address] = joint_pos
         data.ctrl[self.actuators] = joint_pos
         mujoco.mj_kinematics(model, data)
@@ -314,6 +316,23 @@ class SimulatedRobot:
 
 
 # ------------------------------------------------------------------------------------------------- the run
+START_JOINT_OFFSET = 0.1
+"""Runs after the first start from joint positions offset by up to this much (rad, uniform) ..."""
+START_TILT = 0.05
+"""... and a pelvis roll and pitch of up to this much (rad, uniform)."""
+
+
+def start_state(default_joint_pos: np.ndarray, run_index: int, seed: int) -> tuple[np.ndarray, float, float]:
+    """Initial joint positions, roll and pitch of run `run_index`: the default stance, upright, for run 0;
+    a random perturbation of it (drawn from `seed` and the index) for the others."""
+    if run_index == 0:
+        return default_joint_pos, 0.0, 0.0
+    rng = np.random.default_rng([seed, run_index])
+    offsets = rng.uniform(-START_JOINT_OFFSET, START_JOINT_OFFSET, len(default_joint_pos))
+    roll, pitch = rng.uniform(-START_TILT, START_TILT, 2)
+    return default_joint_pos + offsets, float(roll), float(pitch)
+
+
 @dataclass
 class Result:
     """What a run measured; velocities are means over the control steps walked."""
@@ -338,10 +357,13 @@ def run(
     seconds: float,
     video: Path | None = None,
     observations: list[np.ndarray] | None = None,
+    run_index: int = 0,
+    seed: int = 0,
 ) -> Result:
     """Run the controller on the simulated robot for `seconds`, or until it falls.
 
-    With `observations` (a list) every observation the controller built is appended to it.
+    The robot starts from `start_state(run_index, seed)`. With `observations` (a list) every observation
+    the controller built is appended to it.
     """
     meta = policy.metadata
     control_dt = float(meta["control_dt"])
@@ -352,7 +374,7 @@ def run(
         )
     robot = SimulatedRobot(mjcf, list(meta["joint_names"]), physics)
     controller = Controller(policy, np.asarray(command, dtype=float))
-    robot.reset(controller.default_joint_pos)
+    robot.reset(*start_state(controller.default_joint_pos, run_index, seed))
     start, _ = robot.ground_truth()
     lags = physics.lags(substeps)
     runs = [(lag, lags.count(lag)) for lag in sorted(set(lags), reverse=True)]  # lags never increase
@@ -420,13 +442,26 @@ def video_module() -> Any:
     return imageio
 
 
+def summary(result: Result) -> str:
+    """One line about one run."""
+    vx, vy, wz = result.mean_velocity
+    outcome = (
+        f"fell at {result.fall_time:.2f} s" if result.fell else "diverged" if result.diverged else "no fall"
+    )
+    return (
+        f"{result.seconds:5.2f} s, {outcome}; mean vx {vx:.2f} m/s, vy {vy:.2f} m/s, "
+        f"yaw rate {wz:.2f} rad/s; mean |v_xy error| {result.lin_vel_error:.3f} m/s, "
+        f"|yaw rate error| {result.ang_vel_error:.3f} rad/s; {result.distance:.2f} m from the start"
+    )
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Command line: one run; exit status 1 if the robot fell or the simulation diverged, 2 on bad input."""
+    """Command line: exit status 1 if the robot fell or the simulation diverged in a run, 2 on bad input."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("policy", type=Path, help="an ONNX actor written by python -m sb3_huri.export")
-    parser.add_argument("--seconds", type=float, default=20.0, help="how long to run (default 20)")
+    parser.add_argument("--seconds", type=float, default=20.0, help="how long each run lasts (default 20)")
     parser.add_argument(
         "--command",
         type=float,
@@ -436,7 +471,14 @@ def main(argv: list[str] | None = None) -> None:
         help="velocity command: m/s forward and left, rad/s yaw rate (default 0.5 0 0)",
     )
     parser.add_argument(
-        "--video", type=Path, default=None, help="write an mp4 of the run (headless: MUJOCO_GL=egl)"
+        "--runs",
+        type=int,
+        default=1,
+        help="number of runs: the first from the default stance, the others from perturbed ones (default 1)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the perturbed starts (default 0)")
+    parser.add_argument(
+        "--video", type=Path, default=None, help="write an mp4 of the first run (headless: MUJOCO_GL=egl)"
     )
     parser.add_argument("--mjcf", type=Path, default=None, help="the robot's MJCF (default: zerith_gym's)")
     physics = parser.add_argument_group("physics (defaults differ from training's: 5 ms, newton, pyramidal)")
@@ -455,44 +497,45 @@ def main(argv: list[str] | None = None) -> None:
     physics.add_argument(
         "--training-physics", action="store_true", help="use training's physics settings instead of the above"
     )
-    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     args = parser.parse_args(argv)
+    results: list[Result] = []
     try:
-        if args.seconds <= 0:
-            raise DeployError(f"--seconds must be positive, got {args.seconds}")
+        if args.seconds <= 0 or args.runs < 1 or args.delay < 0:
+            raise DeployError("--seconds and --runs must be positive, --delay must not be negative")
         policy = OnnxPolicy(args.policy)
         mjcf = args.mjcf or default_mjcf()
         if args.training_physics:
             settings = Physics.training(mujoco.MjModel.from_xml_path(str(mjcf)).opt.timestep)
         else:
             settings = Physics(args.physics_dt, args.solver, args.integrator, args.cone)
-        if args.delay < 0:
-            raise DeployError(f"--delay must not be negative, got {args.delay}")
         settings = dataclasses.replace(settings, delay=args.delay / 1000)
-        result = run(policy, mjcf, settings, tuple(args.command), args.seconds, args.video)
+        command = tuple(args.command)
+        if not args.json:
+            meta = policy.metadata
+            agent = f"{meta.get('algorithm')} ({meta.get('variant')}) for {meta.get('env_id')}"
+            print(f"{args.policy}: {agent}; {settings.describe()}; command {command}")
+        for index in range(args.runs):
+            video = args.video if index == 0 else None
+            results.append(run(policy, mjcf, settings, command, args.seconds, video, None, index, args.seed))
+            if not args.json:
+                print(f"  run {index}: {summary(results[-1])}")
     except DeployError as error:
         parser.exit(2, f"error: {error}\n")
+    failures = sum(result.fell or result.diverged for result in results)
     if args.json:
-        print(json.dumps(dataclasses.asdict(result)))
-        sys.exit(1 if result.fell or result.diverged else 0)
-    meta = policy.metadata
-    vx, vy, wz = result.mean_velocity
-    outcome = (
-        f"fell at {result.fall_time:.2f} s" if result.fell else "diverged" if result.diverged else "no fall"
-    )
-    agent = f"{meta.get('algorithm')} ({meta.get('variant')}) for {meta.get('env_id')}"
-    print(f"{args.policy}: {agent}, {result.physics}")
-    print(
-        f"  command ({', '.join(f'{c:g}' for c in result.command)}): {result.seconds:.2f} s, {outcome}; "
-        f"mean vx {vx:.2f} m/s, vy {vy:.2f} m/s, yaw rate {wz:.2f} rad/s; "
-        f"mean |v_xy error| {result.lin_vel_error:.3f} m/s, "
-        f"|yaw rate error| {result.ang_vel_error:.3f} rad/s; "
-        f"{result.distance:.2f} m from the start"
-    )
-    if args.video:
-        print(f"  video: {args.video}")
-    if result.fell or result.diverged:
-        sys.exit(1)
+        report = {"physics": settings.describe(), "command": list(command), "falls": failures}
+        print(json.dumps({**report, "runs": [dataclasses.asdict(result) for result in results]}))
+    elif args.runs > 1:
+        mean = np.mean([[*r.mean_velocity, r.lin_vel_error, r.ang_vel_error] for r in results], axis=0)
+        print(
+            f"  {failures}/{args.runs} runs fell or diverged; over the runs: mean vx {mean[0]:.2f} m/s, "
+            f"vy {mean[1]:.2f} m/s, yaw rate {mean[2]:.2f} rad/s; |v_xy error| {mean[3]:.3f} m/s, "
+            f"|yaw rate error| {mean[4]:.3f} rad/s"
+        )
+    if args.video and not args.json:
+        print(f"  video of run 0: {args.video}")
+    sys.exit(1 if failures else 0)
 
 
 if __name__ == "__main__":

@@ -240,18 +240,31 @@ def run_without_torch(tmp_path: Path, *argv: str) -> subprocess.CompletedProcess
 
 
 def test_runner_walks_without_torch_in_sim2sim_physics(exported: dict[str, Path], tmp_path: Path) -> None:
+    """The MJCF and the ONNX file alone, 1 kHz physics and the CG solver; two runs of 3 s."""
     mjcf = tmp_path / "zerith1.xml"
     shutil.copy(REPO / "zerith_gym" / "assets" / "zerith1.xml", mjcf)
-    probe = run_without_torch(tmp_path, "--help")
-    assert probe.returncode == 0, probe.stderr
-    result = run_without_torch(
-        tmp_path, str(exported["huri"]), "--seconds", "4", "--mjcf", str(mjcf), "--json"
-    )
+    argv = [str(exported["huri"]), "--seconds", "3", "--runs", "2", "--mjcf", str(mjcf), "--json"]
+    result = run_without_torch(tmp_path, *argv)
     assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads(result.stdout)
-    assert report["seconds"] == pytest.approx(4.0) and not report["fell"] and not report["diverged"]
-    assert "1000 Hz physics, cg solver" in report["physics"]
-    assert 0.1 < report["mean_velocity"][0] < 1.0 and report["lin_vel_error"] < 0.5
+    assert report["falls"] == 0 and "1000 Hz physics, cg solver" in report["physics"]
+    assert report["command"] == [0.5, 0.0, 0.0] and len(report["runs"]) == 2
+    for run in report["runs"]:
+        assert run["seconds"] == pytest.approx(3.0) and not run["fell"] and not run["diverged"]
+        assert 0.1 < run["mean_velocity"][0] < 1.0 and run["lin_vel_error"] < 0.5
+    assert report["runs"][0]["distance"] != report["runs"][1]["distance"]  # the second start differs
+
+
+def test_runner_starts_are_the_default_stance_then_seeded_perturbations() -> None:
+    runner = load_runner()
+    first = runner.start_state(robot.DEFAULT_JOINT_POS, 0, seed=3)
+    np.testing.assert_array_equal(first[0], robot.DEFAULT_JOINT_POS)
+    assert first[1:] == (0.0, 0.0)
+    joints, roll, pitch = runner.start_state(robot.DEFAULT_JOINT_POS, 1, seed=3)
+    assert 0 < np.abs(joints - robot.DEFAULT_JOINT_POS).max() <= runner.START_JOINT_OFFSET
+    assert 0 < max(abs(roll), abs(pitch)) <= runner.START_TILT
+    np.testing.assert_array_equal(runner.start_state(robot.DEFAULT_JOINT_POS, 1, seed=3)[0], joints)
+    assert not np.array_equal(runner.start_state(robot.DEFAULT_JOINT_POS, 1, seed=4)[0], joints)
 
 
 def test_runner_refuses_files_it_cannot_use(tmp_path: Path, exported: dict[str, Path]) -> None:
