@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 from zerith_gym import robot
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
-from zerith_gym.rewards import REWARD_NAMES, resolve_reward_weights
+from zerith_gym.rewards import TermValues, resolve_reward_weights
 from zerith_gym.scenarios import Scenario, get_scenario
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask
@@ -153,7 +153,7 @@ def step_infos(step: BatchStep) -> list[dict[str, Any]]:
         out.ang_vel_error.tolist(),
         step.force.copy(),
         step.command.copy(),
-        out.terms.tolist(),
+        out.terms,
         strict=True,
     )
     return [
@@ -164,7 +164,7 @@ def step_infos(step: BatchStep) -> list[dict[str, Any]]:
             "ang_vel_error": ang_error,
             "external_force": force,
             "command": command,
-            "reward_terms": dict(zip(REWARD_NAMES, terms, strict=True)),
+            "reward_terms": TermValues(terms),
         }
         for fall, unstable, lin_error, ang_error, force, command, terms in columns
     ]

@@ -15,7 +15,7 @@ Two implementations compute the same (n, K) array of unweighted terms, columns i
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -226,6 +226,34 @@ TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {name: globals()[name] 
 def reward_terms_by_name(x: RewardInputs) -> np.ndarray:
     """All reward terms, unweighted, (n, len(REWARD_NAMES)): one function call per term."""
     return np.column_stack([TERMS[name](x) for name in REWARD_NAMES])
+
+
+class TermValues(Mapping[str, float]):
+    """Term name -> value, read from one row (K,) of a terms array: what `info["reward_terms"]` holds.
+
+    A read-only mapping over the row, so that building one per robot and step costs next to nothing;
+    `dict(values)` makes a plain dict. The row is never written after it is handed out.
+    """
+
+    __slots__ = ("_row",)
+
+    def __init__(self, row: np.ndarray) -> None:
+        self._row = row
+
+    def __getitem__(self, name: str) -> float:
+        return float(self._row[_COLUMN[name]])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(REWARD_NAMES)
+
+    def __len__(self) -> int:
+        return len(REWARD_NAMES)
+
+    def __repr__(self) -> str:
+        return repr(dict(zip(REWARD_NAMES, self._row.tolist(), strict=True)))
+
+
+_COLUMN = {name: k for k, name in enumerate(REWARD_NAMES)}
 
 
 def resolve_reward_weights(overrides: Mapping[str, float] | None = None) -> np.ndarray:
