@@ -289,7 +289,7 @@ def deployment_metadata(env_id: str, input_size: int) -> dict[str, Any]:
                 "name": name,
                 "start": slices[name].start,
                 "size": size,
-                "description": _ZERITH_BLOCK_NOTES[name],
+                "description": _ZERITH_BLOCK_NOTES.get(name, "see docs/zerith1.md"),
             }
             for name, size in POLICY_LAYOUT
         ],
