@@ -5,8 +5,10 @@
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run (model + normalizer)
 
 The hyperparameters are the `Zerith1-v0` preset of `hyperparams/huri.yml`, the one `rl_zoo3 train` reads,
-but the robots run in one process (`zerith_gym.make_vec_env`) instead of RL Zoo's one-env-per-robot
-VecEnv, which is several times faster on a CPU. The run is written in RL Zoo's layout
+but the robots run on the batched env (`zerith_gym.make_vec_env`: worker processes, one per core, each
+stepping a batch of robots) instead of RL Zoo's one-env-per-robot VecEnv, which is several times faster.
+`--curriculum-steps N` grows the randomization from none to the full training ranges over the first N
+steps (`zerith_gym.callbacks.RandomizationCurriculum`, in the same env). The run is written in RL Zoo's layout
 (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip` with `Zerith1-v0/config.yml`, `args.yml` and
 `vecnormalize.pkl`), so RL Zoo's tools read it:
 
@@ -20,7 +22,6 @@ the episode sums of every reward term (`terms/<name>`) and the fall rate.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from pathlib import Path
 from typing import Any
@@ -28,14 +29,13 @@ from typing import Any
 import torch as th
 import yaml
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym.callbacks import RewardTermsLogger
-from zerith_gym.randomization import NOMINAL, RandomizationRanges
-from zerith_gym.scenarios import Scenario, get_scenario
+from zerith_gym.callbacks import RandomizationCurriculum, RewardTermsLogger
+from zerith_gym.scenarios import get_scenario
 
 ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
@@ -60,48 +60,6 @@ def save_run(model: HuRiPPO, run: Path, preset: dict[str, Any], args: dict[str, 
         yaml.safe_dump(preset, f)
     with open(stats / "args.yml", "w") as f:
         yaml.safe_dump(args, f)
-
-
-def scaled_scenario(scenario: Scenario, scale: float) -> Scenario:
-    """`scenario` with its randomization ranges, pushes and external forces shrunk towards none by `scale`.
-
-    Every range (lo, hi) of the randomization moves to (1 - scale) * nominal + scale * (lo, hi), the reset
-    tilt and the observation noise are multiplied by `scale`, and so is the external force's magnitude.
-    """
-    ranges, changes = scenario.randomization, {}
-    for field in dataclasses.fields(RandomizationRanges):
-        value, nominal = getattr(ranges, field.name), getattr(NOMINAL, field.name)
-        if isinstance(value, tuple):
-            changes[field.name] = tuple(
-                (1 - scale) * n + scale * v for v, n in zip(value, nominal, strict=True)
-            )
-        elif field.name in ("init_roll_pitch", "observation_noise"):
-            changes[field.name] = scale * value
-    force = scenario.force
-    return dataclasses.replace(
-        scenario,
-        name=f"{scenario.name}x{scale:g}",
-        randomization=dataclasses.replace(ranges, **changes),
-        force=dataclasses.replace(force, magnitude=tuple(scale * m for m in force.magnitude)),
-    )
-
-
-def curriculum(budget: int, steps: int, stages: int, start: int = 0) -> list[tuple[float, int]]:
-    """(randomization scale, env steps) for the env steps `start` to `start + budget` of a run.
-
-    Over a run's first `steps` env steps the scale rises from 0 to 1 in `stages` equal stages (0, 1/stages,
-    ...); after them it is 1. `start` > 0 continues a resumed run where it stopped.
-    """
-    steps = max(steps, 0)
-    bounds = [k * steps // stages for k in range(stages)] + [steps]
-    end, plan = start + budget, []
-    for k in range(stages):
-        low, high = max(bounds[k], start), min(bounds[k + 1], end)
-        if high > low:
-            plan.append((k / stages, high - low))
-    if end > max(steps, start):
-        plan.append((1.0, end - max(steps, start)))
-    return plan
 
 
 def main() -> None:
@@ -147,33 +105,21 @@ def main() -> None:
     norm = normalize_kwargs(preset)
     run = args.resume or next_run_folder(args.log_folder, args.algo)
 
-    def make_env(scale: float, previous: VecNormalize | None) -> VecEnv:
-        env = zerith_gym.make_vec_env(
-            int(preset["n_envs"]),
-            seed=args.seed,
-            scenario=scaled_scenario(scenario, scale),
-            workers=args.workers,
-            physics_threads=args.physics_threads,
-            **env_kwargs,
-        )
-        if norm is None:
-            return env
-        if previous is None and args.resume:
-            return VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
-        wrapped = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
-        if previous is not None:  # a new stage keeps the statistics learned so far
-            wrapped.obs_rms, wrapped.ret_rms = previous.obs_rms, previous.ret_rms
-            previous.close()
-        return wrapped
-
+    env = zerith_gym.make_vec_env(
+        int(preset["n_envs"]),
+        seed=args.seed,
+        scenario=scenario,
+        workers=args.workers,
+        physics_threads=args.physics_threads,
+        **env_kwargs,
+    )
+    if norm is not None and args.resume:
+        env = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
+    elif norm is not None:
+        env = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
     if args.resume:
-        model = HuRiPPO.load(run / f"{ENV_ID}.zip", tensorboard_log=args.tensorboard_log)
-        start = model.num_timesteps
+        model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log)
     else:
-        model, start = None, 0
-    stages = curriculum(budget, args.curriculum_steps, args.curriculum_stages, start)
-    env = make_env(stages[0][0], None)
-    if model is None:
         model = HuRiPPO(
             preset["policy"],
             env,
@@ -183,25 +129,25 @@ def main() -> None:
             verbose=1,
             **algorithm_kwargs(preset),
         )
-    else:
-        model.set_env(env)
     run_args = {
         "algo": args.algo,
         "env": ENV_ID,
         "seed": args.seed,
         "env_kwargs": {**env_kwargs, "scenario": scenario.name},
     }
-    print(f"Writing to {run}; curriculum (randomization scale, steps): {stages}")
+    curriculum = RandomizationCurriculum(args.curriculum_steps, args.curriculum_stages, verbose=1)
+    print(
+        f"Writing to {run}; curriculum over {args.curriculum_steps} steps in {args.curriculum_stages} stages"
+    )
     checkpoints = CheckpointCallback(
         max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True
     )
-    callbacks = CallbackList([RewardTermsLogger(), checkpoints])
     began = time.time()
-    for k, (scale, steps) in enumerate(stages):
-        if k > 0:
-            env = make_env(scale, model.get_env())
-            model.set_env(env)
-        model.learn(steps, callback=callbacks, reset_num_timesteps=not args.resume and k == 0)
+    model.learn(
+        budget,
+        callback=CallbackList([RewardTermsLogger(), curriculum, checkpoints]),
+        reset_num_timesteps=not args.resume,
+    )
     save_run(model, run, preset, run_args)
     print(f"{model.num_timesteps} steps in {time.time() - began:.0f} s; saved {run / (ENV_ID + '.zip')}")
 

@@ -1,9 +1,8 @@
-"""The shipped Zerith-1 agents load and act, RL Zoo finds them, and the training/evaluation tools compute
-what they claim (curriculum scenarios, gait measures)."""
+"""The shipped Zerith-1 agents load and act, RL Zoo finds them, and the evaluation tools compute what they
+claim (gait measures)."""
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import os
 import shutil
@@ -17,8 +16,6 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.scenarios import SCENARIOS
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
@@ -87,38 +84,6 @@ def test_sb3_ppo_loads_the_shipped_baseline_and_acts_as_huri_ppo_does() -> None:
     np.testing.assert_array_equal(
         ppo.policy.predict_values(observation).detach(), huri.policy.predict_values(observation).detach()
     )
-
-
-# ---------------------------------------------------------------------------- training curriculum
-def test_randomization_scale_zero_is_nominal_and_one_is_the_scenario() -> None:
-    train = load_script("examples/train_zerith.py")
-    scenario = SCENARIOS["train"]
-    none, full = train.scaled_scenario(scenario, 0.0), train.scaled_scenario(scenario, 1.0)
-    assert none.randomization == NOMINAL
-    assert none.force.magnitude == (0.0, 0.0)
-    assert full.randomization == scenario.randomization and full.force == scenario.force
-    half = train.scaled_scenario(scenario, 0.5).randomization
-    assert half.friction == pytest.approx((0.55, 1.25))  # 1 + 0.5 ((0.1, 1.5) - 1)
-    assert half.push_velocity == pytest.approx((0.0, 0.25))
-    assert half.observation_noise == pytest.approx(0.5)
-    assert half.push_interval_s == scenario.randomization.push_interval_s
-    assert dataclasses.replace(train.scaled_scenario(scenario, 0.5), name="train").command_ranges == (
-        scenario.command_ranges
-    )
-
-
-def test_curriculum_covers_the_budget_in_rising_stages() -> None:
-    train = load_script("examples/train_zerith.py")
-    stages = train.curriculum(budget=1000, steps=400, stages=4)
-    assert stages == [(0.0, 100), (0.25, 100), (0.5, 100), (0.75, 100), (1.0, 600)]
-    assert train.curriculum(budget=1000, steps=0, stages=4) == [(1.0, 1000)]
-    # A resumed run continues where it stopped.
-    assert train.curriculum(budget=500, steps=400, stages=4, start=250) == [
-        (0.5, 50),
-        (0.75, 100),
-        (1.0, 350),
-    ]
-    assert train.curriculum(budget=100, steps=400, stages=4, start=900) == [(1.0, 100)]
 
 
 # ------------------------------------------------------------------------------------- gait measures

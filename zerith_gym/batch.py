@@ -81,12 +81,11 @@ class ZerithOptions:
     def resolved_scenario(self) -> Scenario:
         return self.scenario if isinstance(self.scenario, Scenario) else get_scenario(self.scenario)
 
-    @property
-    def resolved_command(self) -> tuple[float, float, float] | None:
-        """The fixed command of every episode, if any: the option's, else the scenario's."""
+    def fixed_command(self, scenario: Scenario) -> tuple[float, float, float] | None:
+        """The fixed command of every episode in `scenario`, if any: the option's, else the scenario's."""
         if self.command is not None:
             return tuple(check_command(self.command, "command").tolist())
-        return self.resolved_scenario.command
+        return scenario.command
 
 
 def reset_command(options: Mapping[str, Any] | None) -> np.ndarray | None:
@@ -130,6 +129,17 @@ def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     return np.minimum(
         np.maximum(actions, -1.0, out=actions), 1.0, out=actions
     )  # np.clip, without its overhead
+
+
+def check_scenario_change(current: Scenario, new: Scenario) -> None:
+    """ValueError unless an env built for `current` can follow `new` (same terrain and force target)."""
+    if not isinstance(new, Scenario):
+        raise ValueError(f"expected a Scenario, got {new!r}")
+    if new.terrain != current.terrain or new.force.target != current.force.target:
+        raise ValueError(
+            f"scenario {new.name!r} has another terrain or force target than {current.name!r}: only "
+            "randomization, forces, pushes and commands can change in an env; make a new env instead"
+        )
 
 
 class BatchStep(NamedTuple):
@@ -188,9 +198,16 @@ class ZerithBatch:
             robot.Sensors.layout(model),
             np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
             resolve_reward_weights(options.reward_weights),
-            options.resolved_command,
+            options.fixed_command(self.scenario),
             int(options.episode_steps),
         )
+
+    def set_scenario(self, scenario: Scenario) -> None:
+        """Follow `scenario` from now on (see `ZerithTask.set_scenario`); its terrain and force target
+        must be those of the current one, which the models were built for."""
+        check_scenario_change(self.scenario, scenario)
+        self.scenario = scenario
+        self.task.set_scenario(scenario, self.options.fixed_command(scenario))
 
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
         """Give robots their random generators for the next resets and steps (robot index -> generator)."""

@@ -1,21 +1,33 @@
 """Stable-Baselines3 callbacks for training on Zerith1-v0 (this module imports SB3; the package does not).
 
-`RewardTermsLogger` writes what the robot is paid for to the logger (tensorboard, csv, stdout), once per
-rollout, so that a user tuning reward weights sees which term moves:
+- `RewardTermsLogger` writes what the robot is paid for to the logger (tensorboard, csv, stdout), once per
+  rollout, so that a user tuning reward weights sees which term moves.
+- `RandomizationCurriculum` grows the training scenario's randomization, pushes and external forces from
+  none to full during training, by timesteps, optionally gated by the fall rate.
 
-    from zerith_gym.callbacks import RewardTermsLogger
+From Python:
 
-    model.learn(1_000_000, callback=RewardTermsLogger())
+    from zerith_gym.callbacks import RandomizationCurriculum, RewardTermsLogger
 
-or in an RL Zoo hyperparameter file: `callback: zerith_gym.callbacks.RewardTermsLogger`.
+    model.learn(8_000_000, callback=[RewardTermsLogger(), RandomizationCurriculum(steps=6_000_000)])
+
+or in an RL Zoo hyperparameter file:
+
+    callback:
+      - zerith_gym.callbacks.RewardTermsLogger
+      - zerith_gym.callbacks.RandomizationCurriculum:
+          steps: 6000000
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.scenarios import Scenario, get_scenario, scaled_scenario
 
 
 class RewardTermsLogger(BaseCallback):
@@ -60,3 +72,82 @@ class RewardTermsLogger(BaseCallback):
             self.logger.record("terms/fall_rate", self._falls / self._episodes)
             for name, total in zip(REWARD_NAMES, self._episode_terms / self._episodes, strict=True):
                 self.logger.record(f"terms/{name}", float(total))
+
+
+class RandomizationCurriculum(BaseCallback):
+    """Train on `scaled_scenario(base, scale)` with `scale` rising from 0 to 1 in `stages` stages.
+
+    By timesteps: over the first `steps` env steps of training (the model's `num_timesteps`, so a resumed
+    run continues where it stopped), stage k of `stages` covers steps [k, k + 1) * steps / stages and
+    trains at scale k / stages; from `steps` on, at scale 1 (the base scenario itself). With
+    `max_fall_rate`, a stage is also held until at most that share of the episodes that ended during the
+    last rollout ended in a fall (a performance gate, as legged-robot curricula use), and the scale then
+    rises by one stage at a time.
+
+    `scenario`: the base (a name or a `Scenario`); default: the scenario the training env was made with.
+    The change is made between rollouts through `set_scenario` of the env (`ZerithVecEnv`, or each
+    `Zerith1Env` of another VecEnv): randomization ranges apply from each robot's next reset, forces,
+    pushes and observation noise from the next step. Logs `curriculum/scale`.
+    """
+
+    def __init__(
+        self,
+        steps: int,
+        stages: int = 8,
+        scenario: str | Scenario | None = None,
+        max_fall_rate: float | None = None,
+        verbose: int = 0,
+    ) -> None:
+        super().__init__(verbose)
+        if not isinstance(steps, int | float) or steps < 0 or steps != int(steps):
+            raise ValueError(f"curriculum steps must be a non-negative whole number, got {steps!r}")
+        steps = int(steps)
+        if not isinstance(stages, int) or stages < 1:
+            raise ValueError(f"curriculum stages must be a positive integer, got {stages!r}")
+        if max_fall_rate is not None and not 0.0 <= max_fall_rate <= 1.0:
+            raise ValueError(f"max_fall_rate must be in [0, 1], got {max_fall_rate!r}")
+        self.steps, self.stages, self.max_fall_rate = steps, stages, max_fall_rate
+        self.base = get_scenario(scenario) if isinstance(scenario, str) else scenario
+        self.stage: int | None = None
+        self._episodes = self._falls = 0
+
+    @property
+    def scale(self) -> float:
+        """The current randomization scale (0 before training starts)."""
+        return 0.0 if self.stage is None else self.stage / self.stages
+
+    def scheduled_stage(self, timesteps: int) -> int:
+        """The stage the timestep schedule calls for after `timesteps` env steps (`stages` = full)."""
+        if timesteps >= self.steps:
+            return self.stages
+        return math.floor(self.stages * timesteps / self.steps)
+
+    def _on_training_start(self) -> None:
+        if self.base is None:
+            self.base = self.training_env.get_attr("scenario")[0]
+
+    def _on_rollout_start(self) -> None:
+        scheduled = self.scheduled_stage(self.model.num_timesteps)
+        stage = scheduled
+        if self.max_fall_rate is not None and self.stage is not None:
+            settled = self._episodes > 0 and self._falls / self._episodes <= self.max_fall_rate
+            stage = min(scheduled, self.stage + 1) if settled else min(scheduled, self.stage)
+        if stage != self.stage:
+            self.stage = stage
+            scenario = self.base if stage == self.stages else scaled_scenario(self.base, self.scale)
+            env = self.training_env.unwrapped
+            if hasattr(env, "set_scenario"):
+                env.set_scenario(scenario)
+            else:
+                env.env_method("set_scenario", scenario)
+            if self.verbose:
+                print(f"curriculum: scale {self.scale:g} at {self.num_timesteps} steps")
+        self._episodes = self._falls = 0
+        self.logger.record("curriculum/scale", self.scale)
+
+    def _on_step(self) -> bool:
+        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
+            if done:
+                self._episodes += 1
+                self._falls += bool(info.get("fall", False))
+        return True

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 from zerith_gym.commands import CommandRanges
 from zerith_gym.disturbances import NO_FORCE, ForceSchedule
@@ -73,3 +73,31 @@ def get_scenario(name: str) -> Scenario:
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; valid scenarios: {', '.join(SCENARIOS)}")
     return SCENARIOS[name]
+
+
+def scaled_scenario(scenario: Scenario, scale: float) -> Scenario:
+    """`scenario` with its randomization ranges, pushes and external forces shrunk towards none by `scale`.
+
+    Every range (lo, hi) of the randomization moves to (1 - scale) * nominal + scale * (lo, hi), the reset
+    tilt and the observation noise are multiplied by `scale`, and so is the external force's magnitude.
+    The command ranges, terrain and force target stay: a curriculum's stages (`scale` 0 to 1) can be
+    followed by one env (`set_scenario`). ValueError unless 0 <= scale <= 1.
+    """
+    if not 0.0 <= scale <= 1.0:
+        raise ValueError(f"the scale of a scenario must be in [0, 1], got {scale!r}")
+    ranges, changes = scenario.randomization, {}
+    for entry in fields(RandomizationRanges):
+        value, nominal = getattr(ranges, entry.name), getattr(NOMINAL, entry.name)
+        if isinstance(value, tuple):
+            changes[entry.name] = tuple(
+                (1 - scale) * n + scale * v for v, n in zip(value, nominal, strict=True)
+            )
+        elif entry.name in ("init_roll_pitch", "observation_noise"):
+            changes[entry.name] = scale * value
+    force = scenario.force
+    return replace(
+        scenario,
+        name=f"{scenario.name}x{scale:g}",
+        randomization=replace(ranges, **changes),
+        force=replace(force, magnitude=tuple(scale * m for m in force.magnitude)),
+    )

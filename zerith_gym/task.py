@@ -121,30 +121,12 @@ class ZerithTask:
     ) -> None:
         n = self.num_robots = num_robots
         self.episode_steps = episode_steps
-        self.scenario = scenario
-        self.ranges = scenario.randomization
         self.terrain = terrain
-        self.fixed_command = None if command is None else np.asarray(command, dtype=float)
         self.reward_weights = reward_weights * robot.CONTROL_DT
         centre, half = joint_range.mean(axis=1), 0.5 * (joint_range[:, 1] - joint_range[:, 0])
         self.soft_low = centre - JOINT_SOFT_LIMIT * half
         self.soft_high = centre + JOINT_SOFT_LIMIT * half
-        self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
-        self._noisy = bool(self.noise_scale.any())
-        # What is due at each control step of an episode: force draw, force on, command draw, push.
-        command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
-        steps = np.arange(episode_steps)
-        self._due = np.column_stack(
-            [
-                *schedule_table(scenario.force, episode_steps),
-                (steps > 0) & (steps % command_interval == 0) & (self.fixed_command is None),
-                push_due(
-                    episode_steps,
-                    round(self.ranges.push_interval_s / robot.CONTROL_DT),
-                    self.ranges.push_velocity,
-                ),
-            ]
-        )
+        self.set_scenario(scenario, command)
         self.gait_table = gait.cycle_table(robot.CONTROL_DT)
         self.sensors = sensors
         self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
@@ -156,12 +138,39 @@ class ZerithTask:
         self.actions = np.zeros((n, 3, robot.NUM_JOINTS))  # a_t, a_{t-1}, a_{t-2}
         self.joint_vel = np.zeros((n, robot.NUM_JOINTS))
         self.force = np.zeros((n, 3))
-        self._domain_bounds = domain_bounds(self.ranges)
         self.domain_vector = np.zeros((n, DOMAIN_VECTOR_SIZE))
         self.lags = np.zeros((n, robot.DECIMATION), dtype=int)
         self.policy_obs = np.zeros((n, POLICY_SIZE), dtype=np.float32)
         self.critic_obs = np.zeros((n, CRITIC_SIZE), dtype=np.float32)
         self._uniforms = np.zeros((n, STEP_DRAWS))
+
+    def set_scenario(self, scenario: Scenario, command: tuple[float, float, float] | None = None) -> None:
+        """Follow `scenario` (and a fixed `command`, if given) from now on.
+
+        Randomization ranges apply from each robot's next reset; the force schedule, pushes, observation
+        noise and command draws from the next step. Nothing else changes: a curriculum can call it
+        between rollouts.
+        """
+        self.scenario = scenario
+        self.ranges = scenario.randomization
+        self.fixed_command = None if command is None else np.asarray(command, dtype=float)
+        self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
+        self._noisy = bool(self.noise_scale.any())
+        self._domain_bounds = domain_bounds(self.ranges)
+        # What is due at each control step of an episode: force draw, force on, command draw, push.
+        command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
+        steps = np.arange(self.episode_steps)
+        self._due = np.column_stack(
+            [
+                *schedule_table(scenario.force, self.episode_steps),
+                (steps > 0) & (steps % command_interval == 0) & (self.fixed_command is None),
+                push_due(
+                    self.episode_steps,
+                    round(self.ranges.push_interval_s / robot.CONTROL_DT),
+                    self.ranges.push_velocity,
+                ),
+            ]
+        )
 
     # ----------------------------------------------------------------------------------------- reset
     def reset(self, ids: np.ndarray) -> tuple[DomainParams, np.ndarray]:

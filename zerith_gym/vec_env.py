@@ -44,6 +44,7 @@ from zerith_gym.batch import (
     step_infos,
 )
 from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.scenarios import Scenario, get_scenario
 from zerith_gym.workers import WorkerPool, default_workers
 
 
@@ -139,6 +140,16 @@ class ZerithVecEnv(VecEnv):
         if policy is out.policy_obs:  # views of the batch's buffers: SB3 keeps what it is given
             policy, critic = policy.copy(), critic.copy()
         return format_observation(self.obs_mode, policy, critic), out.reward.astype(np.float32), dones, infos
+
+    def set_scenario(self, scenario: str | Scenario) -> None:
+        """Follow another scenario from now on, e.g. a curriculum's next stage (`scenarios.scaled_scenario`).
+
+        Its randomization ranges apply from each robot's next reset; forces, pushes, observation noise
+        and command draws from the next step. Terrain and force target cannot change (ValueError).
+        """
+        scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+        self.robots.set_scenario(scenario)
+        self.scenario = scenario
 
     def close(self) -> None:
         """Stop the worker processes or physics threads, if any (models and data go with the object)."""

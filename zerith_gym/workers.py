@@ -20,7 +20,7 @@ needs that guard in the script that creates the env.
 
 A robot gets exactly the calls it would get in a single `ZerithBatch`, with its own random generator, so
 the transitions do not depend on the number of workers (tested). The pool has `ZerithBatch`'s interface
-(`seed`, `reset`, `step`, `commands`, `close`), which is all `ZerithVecEnv` uses.
+(`seed`, `reset`, `step`, `set_scenario`, `commands`, `close`), which is all `ZerithVecEnv` uses.
 """
 
 from __future__ import annotations
@@ -41,9 +41,10 @@ from typing import Any
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions
+from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions, check_scenario_change
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.scenarios import Scenario
 from zerith_gym.task import StepOutput
 
 MIN_ROBOTS_PER_WORKER = 8
@@ -167,6 +168,10 @@ def _serve(
                     batch.close()
                     conn.send_bytes(_OK)
                     break
+                if command == "scenario":
+                    batch.set_scenario(payload)
+                    conn.send_bytes(_OK)
+                    continue
                 ids, seeds, commands = payload  # reset: robot indices of this worker, counted from 0
                 batch.seed(seeds)
                 policy, critic = batch.reset(ids, commands)
@@ -190,6 +195,7 @@ class WorkerPool:
             )
         context = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         self.num_robots = num_robots
+        self.scenario = options.resolved_scenario
         self._seeds: dict[int, np.random.Generator] = {}
         self._block = context.RawArray(ctypes.c_byte, _block_size(num_robots))
         self._shared = _views(self._block, num_robots)
@@ -236,6 +242,15 @@ class WorkerPool:
             busy.append(conn)
         self._collect("resetting", busy)
         return self._shared["policy_obs"][ids].copy(), self._shared["critic_obs"][ids].copy()
+
+    def set_scenario(self, scenario: Scenario) -> None:
+        """Every worker follows `scenario` from now on (see `ZerithBatch.set_scenario`)."""
+        self._check_open()
+        check_scenario_change(self.scenario, scenario)
+        self.scenario = scenario
+        for conn in self._conns:
+            self._send(conn, pickle.dumps(("scenario", scenario)), "changing the scenario")
+        self._collect("changing the scenario")
 
     @property
     def commands(self) -> np.ndarray:

@@ -19,7 +19,7 @@ from zerith_gym.batch import (
     step_infos,
 )
 from zerith_gym.rewards import REWARD_NAMES
-from zerith_gym.scenarios import SCENARIOS
+from zerith_gym.scenarios import SCENARIOS, Scenario, get_scenario
 
 _ROBOT = np.array([0])
 
@@ -123,6 +123,12 @@ class Zerith1Env(gym.Env):
             self.render()
         observation = format_observation(self.obs_mode, out.policy_obs[0], out.critic_obs[0])
         return observation, float(out.reward[0]), terminated, truncated, info
+
+    def set_scenario(self, scenario: str | Scenario) -> None:
+        """Follow another scenario from now on (see `ZerithVecEnv.set_scenario`)."""
+        scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+        self.robots.set_scenario(scenario)
+        self.scenario = scenario
 
     # ------------------------------------------------------------------------------------------------
     def render(self):
