@@ -1,4 +1,5 @@
-"""HuRi's math against independent computations: energy distance, distortions, IQR, SR(lambda) targets."""
+"""HuRi's math against independent computations: energy distance, distortions, IQR, SR(lambda) targets,
+the expectation loss and the RND novelty."""
 
 import numpy as np
 import pytest
@@ -6,9 +7,11 @@ import torch as th
 from scipy import stats
 
 from sb3_huri.common import (
+    RandomNetworkDistillation,
     cvar_weights,
     distortion_weights,
     energy_distance,
+    expectation_loss,
     interpolated_quantile,
     interquartile_range,
     iqr_risk_level,
@@ -190,3 +193,109 @@ def test_sr_lambda_mixture_has_the_td_lambda_return_as_its_mean():
         returns[step] = rewards[step] + gamma * continues * ((1 - lam) * next_value + lam * next_return)
         next_return, next_value = returns[step], values[step]
     np.testing.assert_allclose(targets.mean(-1), returns, atol=0.05)
+
+
+# --- expectation loss (eq. 5) -------------------------------------------------------------------------
+
+
+def test_expectation_loss_readings_match_numpy():
+    rng = np.random.default_rng(0)
+    atoms = np.sort(rng.normal(size=(6, 8)), axis=-1)
+    targets = rng.normal(1.0, 2.0, size=(6, 5))
+    beta = rng.uniform(-1, 1, size=6)
+    # Wang weights from scipy's normal distribution, independently of sb3_huri.
+    levels = np.linspace(0, 1, 9)
+    cdf = stats.norm.cdf(stats.norm.ppf(levels)[None, :] + beta[:, None])
+    weights = np.diff(cdf, axis=-1)
+    args = [th.tensor(a) for a in (atoms, targets, weights)]
+    expected_target = np.mean((atoms.mean(axis=-1) - targets.mean(axis=-1)) ** 2)
+    expected_distorted = np.mean((atoms.mean(axis=-1) - (weights * atoms).sum(axis=-1)) ** 2)
+    assert expectation_loss(*args, reading="target").item() == pytest.approx(expected_target)
+    assert expectation_loss(*args, reading="distorted").item() == pytest.approx(expected_distorted)
+    with pytest.raises(ValueError, match="expectation loss"):
+        expectation_loss(*args, reading="self")
+
+
+def test_distorted_expectation_loss_is_a_spread_penalty_and_the_target_one_is_not():
+    # The distorted reading only sees the prediction: its gradient narrows a spread distribution whatever the
+    # targets, and it vanishes for a point mass. The target reading is zero when the means agree.
+    atoms = th.linspace(-1.0, 1.0, 8, dtype=th.float64).expand(3, -1).clone().requires_grad_(True)
+    weights = wang_weights(th.ones(3, dtype=th.float64), 8)
+    expectation_loss(atoms, th.zeros(3, 5, dtype=th.float64), weights, "target").backward()
+    assert atoms.grad.abs().max() == 0
+    atoms.grad = None
+    expectation_loss(atoms, th.zeros(3, 5, dtype=th.float64), weights, "distorted").backward()
+    step = -atoms.grad[0]  # gradient descent direction
+    assert step[0] > 0 and step[-1] < 0  # the lowest atom moves up, the highest down
+    point_mass = th.full((3, 8), 2.0, dtype=th.float64)
+    assert expectation_loss(point_mass, th.zeros(3, 5), weights, "distorted").item() == pytest.approx(0.0)
+
+
+@pytest.mark.parametrize(("reading", "low", "high"), [("target", 0.96, 1.04), ("distorted", 0.0, 0.88)])
+def test_fitted_spread_of_a_known_distribution_under_each_reading(reading, low, high):
+    # benchmarks/bench_expectation_loss.py: free atoms fitted to samples of N(2, 1.5^2) with the energy
+    # distance plus 0.05 x the expectation loss at beta = 1 (the paper's coefficient).
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_expectation_loss.py"
+    spec = importlib.util.spec_from_file_location("bench_expectation_loss", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    mean, std = bench.fit_known_distribution(reading, beta=1.0, coef=0.05, batch=16, steps=1000, seed=1)
+    assert low * 1.5 <= std <= high * 1.5
+    assert mean == pytest.approx(2.0, abs=0.08)
+
+
+# --- RND novelty ----------------------------------------------------------------------------------------
+
+
+def test_rnd_error_is_relative_to_the_variance_of_the_target_outputs():
+    th.manual_seed(0)
+    rnd = RandomNetworkDistillation(input_dim=5, output_dim=4)
+    inputs = th.randn(4000, 5) * 3.0 + 1.0
+    rnd.update_normalizer(inputs)
+    with th.no_grad():
+        normalized = (inputs.numpy() - inputs.numpy().mean(0)) / inputs.numpy().std(0)
+        normalized = th.tensor(np.clip(normalized, -5, 5), dtype=th.float32)
+        target = rnd.target(normalized).numpy().astype(np.float64)
+        predicted = rnd.predictor(normalized).numpy().astype(np.float64)
+    expected = ((predicted - target) ** 2).sum(axis=-1) / target.var(axis=0).sum()
+    np.testing.assert_allclose(rnd.prediction_error(inputs).numpy(), expected, rtol=2e-3)
+    raw = RandomNetworkDistillation(input_dim=5, output_dim=4, normalize_error=False)
+    raw.load_state_dict(rnd.state_dict())
+    assert not raw.normalize_error
+    np.testing.assert_allclose(
+        raw.prediction_error(inputs).numpy(), ((predicted - target) ** 2).mean(axis=-1), rtol=2e-3
+    )
+
+
+def test_rnd_error_starts_near_one_and_falls_on_familiar_states_only():
+    th.manual_seed(0)
+    rnd = RandomNetworkDistillation(input_dim=6)
+    familiar = th.randn(2048, 6) * 0.5
+    rnd.update_normalizer(familiar)
+    novel = th.randn(2048, 6) * 0.5 + th.tensor([2.0, -2.0, 2.0, 0.0, 0.0, 0.0])
+    before = rnd.prediction_error(familiar).mean().item()
+    assert before > 1.0  # an untrained predictor misses the target by more than the target's own spread
+    rnd.fit(familiar, n_epochs=30, batch_size=256)
+    after, far = rnd.prediction_error(familiar).mean().item(), rnd.prediction_error(novel).mean().item()
+    assert after < 0.2 * before
+    assert far > 3 * after
+    assert np.tanh(far) > 0.1
+
+
+def test_rnd_state_saved_before_the_target_statistics_loads_with_unit_variance():
+    rnd = RandomNetworkDistillation(input_dim=3)
+    rnd.update_normalizer(th.randn(100, 3))
+    state = rnd.state_dict()
+    state["_extra_state"] = {key: state["_extra_state"][key] for key in ("mean", "var", "count")}
+    old = RandomNetworkDistillation(input_dim=3)
+    old.load_state_dict(state)
+    np.testing.assert_array_equal(old.obs_rms.var, rnd.obs_rms.var)
+    np.testing.assert_array_equal(old.target_rms.var, np.ones(16))
+    inputs = th.randn(10, 3)
+    with th.no_grad():
+        normalized = old.normalize(inputs)
+        expected = (old.predictor(normalized) - old.target(normalized)).pow(2).mean(dim=-1)
+    th.testing.assert_close(old.prediction_error(inputs), expected, rtol=1e-5, atol=1e-7)

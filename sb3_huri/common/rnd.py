@@ -19,10 +19,10 @@ class RandomNetworkDistillation(nn.Module):
     was trained on. Inputs are standardized with running statistics (SB3's ``RunningMeanStd``) and clipped,
     so the error does not depend on the input scale. The error is then divided by the running total variance
     of the target's outputs, ``sum_k Var(g_k)`` (a second ``RunningMeanStd``), so that its scale means the
-    same thing for any network size and input: about 1 or more for a state the predictor has never been
-    trained on (an untrained predictor explains none of the target), falling towards 0 as the state becomes
-    familiar. Unnormalized, the error of a 16-output target on standardized inputs is a few thousandths,
-    and ``tanh`` of it (paper eq. 10) is negligible next to the IQR's risk levels of -1, 0 and 1.
+    same thing for any network size and input: above 1 for a state the predictor has never been trained on
+    (an untrained predictor misses the target by more than the target's own spread), falling towards 0 as
+    the state becomes familiar. Unnormalized, the mean error of a 16-output target on standardized inputs is
+    a few thousandths, and ``tanh`` of it (paper eq. 10) is negligible next to the IQR's risk levels -1, 0, 1.
     Both sets of statistics are part of ``state_dict()`` (as the module's extra state) and the predictor has
     its own Adam optimizer (``self.optimizer``), so they travel with a saved model.
 
