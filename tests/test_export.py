@@ -26,7 +26,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import sb3_huri
 import zerith_gym  # noqa: F401  (registers Zerith1-v0)
-from sb3_huri import HuRiPPO
+from sb3_huri import VARIANTS, HuRiPPO
 from sb3_huri.export import (
     FORMAT,
     actor_of,
@@ -130,6 +130,28 @@ def test_the_file_carries_what_a_controller_needs(exported: dict[str, Path], nam
     assert normalization["epsilon"] == stats.epsilon
     mean = {t.name: onnx.numpy_helper.to_array(t) for t in proto.graph.initializer}["obs_mean"]
     np.testing.assert_allclose(mean, stats.obs_rms["policy"].mean, rtol=1e-6)
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_every_method_exports(tmp_path: Path, variant: str) -> None:
+    """Each method of the paper's comparison, untrained, with made-up normalization statistics."""
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]))
+    rng = np.random.default_rng(1)
+    for rms in venv.obs_rms.values():
+        rms.mean = rng.normal(size=rms.mean.shape)
+        rms.var = rng.uniform(0.01, 4.0, size=rms.var.shape)
+    model = HuRiPPO(
+        "MultiInputPolicy",
+        venv,
+        variant=variant,
+        n_steps=32,
+        policy_kwargs=dict(net_arch=[32, 16]),
+        device="cpu",
+    )
+    output = tmp_path / f"{variant}.onnx"
+    export_actor(model, venv, ENV_ID, output)
+    assert metadata(output)["variant"] == variant
+    assert check_export(output, model, venv) < 1e-5
 
 
 def test_plain_sb3_ppo_with_a_box_observation_and_tanh_layers(tmp_path: Path) -> None:
