@@ -218,6 +218,15 @@ class Physics:
         )
         return text + (f", {self.delay * 1000:g} ms delay" if self.delay else "")
 
+    def substeps(self, control_dt: float) -> int:
+        """Physics steps per control period; DeployError unless the physics step divides the period."""
+        count = round(control_dt / self.timestep)
+        if count < 1 or abs(count * self.timestep - control_dt) > 1e-9:
+            raise DeployError(
+                f"the physics step ({self.timestep} s) must divide the control period ({control_dt} s)"
+            )
+        return count
+
     def lags(self, substeps: int) -> list[int]:
         """For each physics step of a control step, how many control steps old the targets it applies are.
 
@@ -367,11 +376,7 @@ def run(
     """
     meta = policy.metadata
     control_dt = float(meta["control_dt"])
-    substeps = round(control_dt / physics.timestep)
-    if substeps < 1 or abs(substeps * physics.timestep - control_dt) > 1e-9:
-        raise DeployError(
-            f"the physics step ({physics.timestep} s) must divide the control period ({control_dt} s)"
-        )
+    substeps = physics.substeps(control_dt)
     robot = SimulatedRobot(mjcf, list(meta["joint_names"]), physics)
     controller = Controller(policy, np.asarray(command, dtype=float))
     robot.reset(*start_state(controller.default_joint_pos, run_index, seed))
@@ -505,11 +510,14 @@ def main(argv: list[str] | None = None) -> None:
             raise DeployError("--seconds and --runs must be positive, --delay must not be negative")
         policy = OnnxPolicy(args.policy)
         mjcf = args.mjcf or default_mjcf()
+        if not mjcf.is_file():
+            raise DeployError(f"MJCF {mjcf} not found")
         if args.training_physics:
             settings = Physics.training(mujoco.MjModel.from_xml_path(str(mjcf)).opt.timestep)
         else:
             settings = Physics(args.physics_dt, args.solver, args.integrator, args.cone)
         settings = dataclasses.replace(settings, delay=args.delay / 1000)
+        settings.substeps(float(policy.metadata["control_dt"]))
         command = tuple(args.command)
         if not args.json:
             meta = policy.metadata
