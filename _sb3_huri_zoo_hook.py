@@ -17,7 +17,7 @@ import sys
 _HOOKS = {
     "rl_zoo3": ("register_algorithms", "register_environments"),
     "rl_zoo3.hyperparams_opt": ("register_samplers",),
-    "rl_zoo3.exp_manager": ("use_packaged_hyperparameters",),
+    "rl_zoo3.exp_manager": ("use_packaged_hyperparameters", "use_batched_zerith_env"),
 }
 
 

@@ -4,13 +4,14 @@
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run (model + normalizer)
 
-The hyperparameters are the `Zerith1-v0` preset of `hyperparams/huri.yml`, the one `rl_zoo3 train` reads,
-but the robots run on the batched env (`zerith_gym.make_vec_env`: worker processes, one per core, each
-stepping a batch of robots) instead of RL Zoo's one-env-per-robot VecEnv, which is several times faster.
-`--curriculum-steps N` grows the randomization from none to the full training ranges over the first N
-steps (`zerith_gym.callbacks.RandomizationCurriculum`, in the same env). The run is written in RL Zoo's layout
-(`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip` with `Zerith1-v0/config.yml`, `args.yml` and
-`vecnormalize.pkl`), so RL Zoo's tools read it:
+It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
+`hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: worker processes, one per core),
+with the preset's `callback:` entries read as RL Zoo reads them: the reward-term logs
+(`zerith_gym.callbacks.RewardTermsLogger`) and the randomization curriculum
+(`zerith_gym.callbacks.RandomizationCurriculum`, which grows the randomization from none to the full
+training ranges; `--curriculum-steps N` replaces it). It adds resuming and periodic checkpoints. The run is
+written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip` with
+`Zerith1-v0/config.yml`, `args.yml` and `vecnormalize.pkl`), so RL Zoo's tools read it:
 
     rl_zoo3 enjoy --algo huri --env Zerith1-v0 -f logs/ --no-render -n 1000
     python examples/watch_zerith.py logs/huri/Zerith1-v0_1
@@ -28,13 +29,14 @@ from typing import Any
 
 import torch as th
 import yaml
+from rl_zoo3.utils import get_callback_list
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym.callbacks import RandomizationCurriculum, RewardTermsLogger
+from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
 
 ENV_ID = "Zerith1-v0"
@@ -90,10 +92,10 @@ def main() -> None:
     parser.add_argument(
         "--curriculum-steps",
         type=int,
-        default=0,
-        help="grow the randomization from none to the scenario's over this many steps (0: no curriculum)",
+        default=None,
+        help="grow the randomization from none to full over this many steps (default: the preset's callback)",
     )
-    parser.add_argument("--curriculum-stages", type=int, default=8, help="steps of the curriculum")
+    parser.add_argument("--curriculum-stages", type=int, default=8, help="stages of --curriculum-steps")
     parser.add_argument("--tensorboard-log", default=None)
     args = parser.parse_args()
     th.set_num_threads(args.threads)
@@ -135,17 +137,18 @@ def main() -> None:
         "seed": args.seed,
         "env_kwargs": {**env_kwargs, "scenario": scenario.name},
     }
-    curriculum = RandomizationCurriculum(args.curriculum_steps, args.curriculum_stages, verbose=1)
-    print(
-        f"Writing to {run}; curriculum over {args.curriculum_steps} steps in {args.curriculum_stages} stages"
+    callbacks = get_callback_list(preset)  # the preset's `callback:` entries, read as RL Zoo reads them
+    if args.curriculum_steps is not None:
+        callbacks = [c for c in callbacks if not isinstance(c, RandomizationCurriculum)]
+        callbacks.append(RandomizationCurriculum(args.curriculum_steps, args.curriculum_stages))
+    callbacks.append(
+        CheckpointCallback(max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True)
     )
-    checkpoints = CheckpointCallback(
-        max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True
-    )
+    print(f"Writing to {run}; callbacks: {', '.join(type(c).__name__ for c in callbacks)}")
     began = time.time()
     model.learn(
         budget,
-        callback=CallbackList([RewardTermsLogger(), curriculum, checkpoints]),
+        callback=CallbackList(callbacks),
         reset_num_timesteps=not args.resume,
     )
     save_run(model, run, preset, run_args)

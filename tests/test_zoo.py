@@ -83,7 +83,6 @@ def zerith_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "--eval-episodes", "1",
         "--seed", "7",
         "--tensorboard-log", "tb",
-        "--vec-env", "subproc",
         "--num-threads", "1",
         "-params", "n_envs:2", "n_steps:64",
     ]  # fmt: skip
@@ -96,6 +95,9 @@ def test_train_writes_model_evaluations_and_tensorboard(zerith_run: Path) -> Non
     assert (run_folder / "Zerith1-v0.zip").stat().st_size > 0
     assert (run_folder / "Zerith1-v0" / "vecnormalize.pkl").is_file()
     assert (run_folder / "evaluations.npz").is_file()  # --eval-freq
+    # The robots ran in one batched env (zerith_gym.make_vec_env), which writes one monitor file, where
+    # RL Zoo's DummyVecEnv of one env per robot would write one per robot.
+    assert sorted(p.name for p in run_folder.glob("*.monitor.csv")) == ["0.monitor.csv"]
     args = yaml.load((run_folder / "Zerith1-v0" / "args.yml").read_text(), Loader=yaml.UnsafeLoader)
     assert args["seed"] == 7
     events = list((zerith_run / "tb" / "Zerith1-v0").rglob("events.out.tfevents.*"))  # --tensorboard-log
