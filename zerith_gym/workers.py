@@ -115,15 +115,7 @@ _PER_ROBOT = ("reward", "terminated", "truncated", "fall", "sim_unstable", "lin_
 
 def _write_step(shared: dict[str, np.ndarray], rows: slice, step: BatchStep) -> None:
     out = step.out
-    for name in (
-        "reward",
-        "terminated",
-        "truncated",
-        "fall",
-        "sim_unstable",
-        "lin_vel_error",
-        "ang_vel_error",
-    ):
+    for name in _PER_ROBOT:
         shared[name][rows] = getattr(out, name)
     shared["terms"][rows] = out.terms
     shared["step_policy_obs"][rows] = out.policy_obs
