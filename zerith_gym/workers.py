@@ -269,15 +269,12 @@ class WorkerPool:
             ang_vel_error=shared["ang_vel_error"].copy(),
             terms=shared["terms"].copy(),
         )
-        ended = out.terminated | out.truncated
-        policy = np.where(ended[:, None], shared["policy_obs"], out.policy_obs)
-        critic = np.where(ended[:, None], shared["critic_obs"], out.critic_obs)
         return BatchStep(
             out,
             shared["force"].copy(),
             shared["command"].copy(),
-            policy,
-            critic,
+            shared["policy_obs"].copy(),  # the step's observations, or the new episode's where one ended
+            shared["critic_obs"].copy(),
             shared["next_command"].copy(),
         )
 
