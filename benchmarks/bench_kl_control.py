@@ -75,7 +75,7 @@ def continue_run(
     if model.policy.rnd is not None and "target_mean" not in model.policy.rnd.get_extra_state():
         model.policy.rnd.normalize_error = False
     model.desired_kl = desired_kl
-    model.kl_learning_rate = model.lr_schedule(1.0) if desired_kl is not None else None
+    model.kl_learning_rate = None  # the first update starts from the run's learning rate
     stats = UpdateStats()
     began = time.time()
     model.learn(steps, callback=stats, reset_num_timesteps=False)

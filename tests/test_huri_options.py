@@ -238,3 +238,15 @@ def test_rnd_kwargs_reach_the_rnd_module():
     assert [layer.out_features for layer in rnd.predictor if isinstance(layer, th.nn.Linear)] == [4, 3]
     assert rnd.optimizer.param_groups[0]["lr"] == 0.5 and rnd.normalize_error
     assert HuRiPPO("MlpPolicy", dict_env(), variant="huri-no-rnd", **SMALL).rnd_kwargs is None
+
+
+def test_beta_rnd_is_material_on_the_first_rollouts_and_falls_as_states_become_familiar():
+    model = HuRiPPO(
+        "MlpPolicy", dict_env(), seed=0, n_steps=64, n_epochs=5, policy_kwargs=dict(net_arch=[32])
+    )
+    recorder = KeyRecorder()
+    model.set_logger(Logger(folder=None, output_formats=[recorder]))
+    model.learn(128 * 12)
+    beta_rnd = np.array(recorder.records["rollout/beta_rnd_mean"])
+    assert beta_rnd[0] > 0.5
+    assert beta_rnd[-3:].mean() < 0.5 * beta_rnd[0]

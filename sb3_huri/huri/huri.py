@@ -200,6 +200,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
         self.expectation_loss = expectation_loss
         self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
+        self.kl_learning_rate: float | None = None  # set by the first update with desired_kl
         _check_hyperparameters(
             n_steps=n_steps,
             n_epochs=n_epochs,
@@ -283,8 +284,6 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
         self.policy = self.policy.to(self.device)
         self.clip_range = FloatSchedule(self.clip_range)
-        if self.desired_kl is not None and getattr(self, "kl_learning_rate", None) is None:
-            self.kl_learning_rate = self.lr_schedule(1.0)
 
     def _complete_policy_kwargs(self) -> None:
         """Put the critic's width and the RND settings into ``policy_kwargs``, so a saved model rebuilds them.
@@ -520,8 +519,10 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.policy.set_training_mode(True)
         if self.desired_kl is None:
             self._update_learning_rate(self.policy.optimizer)
-        else:
-            self._set_kl_learning_rate(self.kl_learning_rate)
+        else:  # starts from the schedule's value, then carries over from update to update
+            self._set_kl_learning_rate(
+                self.kl_learning_rate or self.lr_schedule(self._current_progress_remaining)
+            )
         clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
         logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
@@ -612,7 +613,7 @@ class HuRiPPO(OnPolicyAlgorithm):
 
     def _adapt_learning_rate(self, approx_kl: float) -> None:
         """KL-adaptive step: a smaller learning rate when the policy moved too far, larger when too little."""
-        assert self.desired_kl is not None
+        assert self.desired_kl is not None and self.kl_learning_rate is not None
         low, high = self.kl_learning_rate_bounds
         if approx_kl > 2.0 * self.desired_kl:
             self._set_kl_learning_rate(max(self.kl_learning_rate / 1.5, low))
