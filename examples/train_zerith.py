@@ -25,43 +25,21 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-from typing import Any
 
 import torch as th
-import yaml
 from rl_zoo3.utils import get_callback_list
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, read_preset
+from sb3_huri.zoo import METHODS, algorithm_kwargs, next_run_folder, normalize_kwargs, read_preset, save_run
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
 
 ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_PRESET = ROOT / "hyperparams" / "huri.yml"
-
-
-def next_run_folder(log_folder: Path, algo: str) -> Path:
-    """`<log_folder>/<algo>/Zerith1-v0_<id>` with the next free id, as RL Zoo numbers its runs."""
-    ids = [int(p.name.rsplit("_", 1)[1]) for p in (log_folder / algo).glob(f"{ENV_ID}_*") if p.is_dir()]
-    return log_folder / algo / f"{ENV_ID}_{max(ids, default=0) + 1}"
-
-
-def save_run(model: HuRiPPO, run: Path, preset: dict[str, Any], args: dict[str, Any]) -> None:
-    """Model, normalizer, preset and arguments in RL Zoo's layout (what `rl_zoo3 enjoy` loads)."""
-    stats = run / ENV_ID
-    stats.mkdir(parents=True, exist_ok=True)
-    model.save(run / f"{ENV_ID}.zip")
-    env = model.get_env()
-    if isinstance(env, VecNormalize):
-        env.save(str(stats / "vecnormalize.pkl"))
-    with open(stats / "config.yml", "w") as f:
-        yaml.safe_dump(preset, f)
-    with open(stats / "args.yml", "w") as f:
-        yaml.safe_dump(args, f)
 
 
 def main() -> None:

@@ -19,6 +19,9 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.zoo.runs import next_run_folder as next_run_folder
+from sb3_huri.zoo.runs import save_run as save_run
+
 # RL Zoo algorithm name -> HuRiPPO ``variant``.
 METHODS = {
     "huri-baseline": "baseline",

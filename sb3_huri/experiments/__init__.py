@@ -1,0 +1,25 @@
+"""The paper's experiments: a grid of methods x seeds trained, evaluated and reported by one command.
+
+    python -m sb3_huri.experiments run --env Zerith1-v0 --methods huri huri-baseline --seeds 0 1 2 \\
+        --timesteps 2000000 --eval-episodes 10 --out results/zerith [--backend local|ray] [--workers W]
+    python -m sb3_huri.experiments report results/zerith
+
+Modules, one job each:
+
+- ``layout``: the experiment folder, its settings and grid, run folders and their ``status.json``
+  (atomic writes, locks, clear errors for foreign or corrupt folders);
+- ``training``: one run trained on the env's preset, resumable from its last checkpoint;
+- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, risk traces) on a trained run;
+- ``task``: one run's whole job (train, then evaluate), what a backend executes;
+- ``backends``: a local process pool, or Ray tasks across a cluster;
+- ``driver``: the ``run`` command: skip finished runs, hand the rest to a backend, print progress;
+- ``report``: ``report.md`` and figures beside the paper's numbers (``paper``).
+
+From Python: ``run_experiment(out, env, methods, seeds, timesteps, ...)`` and ``write_report(out)``.
+"""
+
+from sb3_huri.experiments.driver import run_experiment
+from sb3_huri.experiments.layout import EvalSettings, ExperimentError
+from sb3_huri.experiments.report import write_report
+
+__all__ = ["EvalSettings", "ExperimentError", "run_experiment", "write_report"]

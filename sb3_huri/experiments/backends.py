@@ -1,0 +1,142 @@
+"""Where the runs execute: a local process pool (default) or Ray tasks spread over a cluster.
+
+Both take ``task.RunTask`` jobs and hand back ``task.RunOutcome`` results as runs finish; the caller
+(``driver``) submits at most ``parallel`` runs at a time and follows their progress in the folder.
+
+- ``LocalBackend``: ``concurrent.futures.ProcessPoolExecutor`` (spawned processes, so that no torch or
+  MuJoCo state is forked). Each pool process dies with the command (``PR_SET_PDEATHSIG`` on Linux), so a
+  killed command leaves no orphan run writing its folder; Ctrl-C interrupts the runs, whose last
+  checkpoints the next command continues from.
+- ``RayBackend``: the same function as Ray tasks, each reserving ``cpus`` CPUs; Ray places them on the
+  cluster's machines (``ray.init()`` connects to ``RAY_ADDRESS``, or to ``--ray-address``; without
+  either it starts a local Ray instance). The output folder must be shared, at the same path, by every
+  machine (NFS or the like). A task whose machine is lost is retried by Ray and continues from the run's
+  last checkpoint.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import multiprocessing as mp
+import os
+import signal
+import sys
+from collections.abc import Iterable
+from typing import Any, Protocol
+
+from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.task import RunOutcome, RunTask, execute_run
+
+TASK_RETRIES = 3
+"""Ray retries of a run whose worker or machine died (it continues from its last checkpoint)."""
+
+
+class Backend(Protocol):
+    """Runs ``RunTask`` jobs somewhere and reports them as they finish."""
+
+    def submit(self, task: RunTask) -> Any:
+        """Start ``task``; returns a handle."""
+
+    def wait(self, handles: Iterable[Any], timeout: float) -> list[Any]:
+        """The handles among ``handles`` that finished within ``timeout`` seconds (maybe none)."""
+
+    def result(self, handle: Any) -> RunOutcome:
+        """The outcome of a finished handle (re-raises what the job raised)."""
+
+    def stop(self, handles: Iterable[Any]) -> None:
+        """Interrupt the started jobs ``handles`` and release the resources (after Ctrl-C)."""
+
+    def close(self) -> None:
+        """Release the resources after every job finished."""
+
+
+def _die_with_parent() -> None:
+    """Pool process initializer: get SIGTERM when the command's process ends, however it ends (Linux)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+            if os.getppid() == 1:  # the parent died before the call
+                os._exit(1)
+
+
+class LocalBackend:
+    """A pool of ``parallel`` processes on this machine."""
+
+    def __init__(self, parallel: int) -> None:
+        self.pool = cf.ProcessPoolExecutor(
+            max_workers=parallel, mp_context=mp.get_context("spawn"), initializer=_die_with_parent
+        )
+
+    def submit(self, task: RunTask) -> cf.Future:
+        return self.pool.submit(execute_run, task)
+
+    def wait(self, handles: Iterable[cf.Future], timeout: float) -> list[cf.Future]:
+        done, _ = cf.wait(list(handles), timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        return list(done)
+
+    def result(self, handle: cf.Future) -> RunOutcome:
+        return handle.result()
+
+    def stop(self, handles: Iterable[cf.Future]) -> None:
+        # Interrupt the runs (a Ctrl-C in a terminal reaches them already; a SIGINT sent to this process
+        # alone does not), then wait for them to close their envs. The pool has no public handle on its
+        # processes before Python 3.14.
+        for process in list(getattr(self.pool, "_processes", {}).values()):
+            with contextlib.suppress(OSError, ValueError):
+                os.kill(process.pid, signal.SIGINT)
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True)
+
+
+class RayBackend:
+    """Ray tasks reserving ``cpus`` CPUs each, on the cluster ``ray.init`` connects to."""
+
+    def __init__(self, cpus: int, address: str | None = None) -> None:
+        try:
+            import ray
+        except ImportError as error:
+            raise ExperimentError(
+                'the ray backend needs Ray: pip install "sb3-huri[experiments]" (or "ray>=2.9")'
+            ) from error
+        self.ray = ray
+        self.started = not ray.is_initialized()
+        if self.started:
+            ray.init(address=address)
+        self.remote = ray.remote(num_cpus=cpus, max_retries=TASK_RETRIES)(execute_run)
+
+    def submit(self, task: RunTask) -> Any:
+        return self.remote.remote(task)
+
+    def wait(self, handles: Iterable[Any], timeout: float) -> list[Any]:
+        handles = list(handles)
+        if not handles:
+            return []
+        done, _ = self.ray.wait(handles, num_returns=1, timeout=timeout)
+        return list(done)
+
+    def result(self, handle: Any) -> RunOutcome:
+        return self.ray.get(handle)
+
+    def stop(self, handles: Iterable[Any]) -> None:
+        for handle in handles:  # the runs keep their last checkpoints
+            with contextlib.suppress(Exception):
+                self.ray.cancel(handle, force=True)
+        self.close()
+
+    def close(self) -> None:
+        if self.started:
+            self.ray.shutdown()
+
+
+def available_cpus() -> int:
+    """CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1

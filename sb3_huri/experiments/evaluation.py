@@ -1,0 +1,273 @@
+"""Evaluating a trained Zerith-1 agent: survival, velocity tracking, gait and the critic's risk, per scenario.
+
+A *case* is a scenario with an optional fixed command, ``scenario@vx`` (command (vx, 0, 0)) or a scenario
+alone (its own command: (1, 0, 0) for the paper's test scenarios). ``evaluate`` runs one episode on each of
+``episodes`` robots side by side with the deterministic policy; robot i is seeded ``seed + i``, so every
+agent meets the same conditions. Metrics:
+
+- ``survive``: share of episodes that reach the time limit without a fall;
+- ``vx_err``: mean |v_x - v_x,cmd| (m/s, pelvis frame) over every step of every episode, up to a fall;
+- ``vx``: mean forward velocity (m/s); ``lin_err``: mean |v_xy - v_xy,cmd|; ``yaw_err``: mean |w_z - w_z,cmd|;
+- ``steps_per_s``: steps per second, a step being a foot off the ground for at least 60 ms (a walk at the
+  0.7-s gait clock makes about 2.9);
+- ``alternation``: share of consecutive steps made by alternate feet, not together (1 = the feet take turns);
+- ``single_support``: share of the time on exactly one foot.
+
+With ``risk=True`` the critic's view of every state is recorded too (``HuRiPPO.assess_risk``: the sorted
+return quantiles, the risk parameter beta and the interquartile range): ``beta`` and ``iqr`` averaged over
+every robot-step, and robot 0's trace, step by step, with the external force it felt (the paper's Fig. 5).
+
+``PROTOCOL`` is the paper's evaluation (``DESIGN`` section 6): the six disturbance scenarios of its Table 1
+(survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), and
+walking on the plane, with risk traces on the plane, under sudden pushes and on uneven ground (its Fig. 5).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
+from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
+from zerith_gym.robot import CONTROL_DT
+from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
+
+_CRITIC = layout_slices(CRITIC_LAYOUT)
+MIN_AIR_STEPS = 3
+"""A foot must stay off the ground this many control steps (60 ms) for a step to count."""
+
+TABLE1_SCENARIOS = (
+    "continuous-centroid",
+    "continuous-hands",
+    "continuous-feet",
+    "sudden-centroid",
+    "sudden-hands",
+    "sudden-feet",
+)
+"""The paper's Table 1 columns: success (no fall) under continuous and sudden forces on three body parts."""
+TRACKING_SCENARIOS = ("load", "friction", "load-friction", "uneven")
+"""The paper's Fig. 4 conditions (velocity tracking), and uneven ground."""
+PLANE_CASE = f"nominal@{TEST_COMMAND[0]:g}"
+"""Walking on the plane at the test command, no randomization and no force: the reference for the risk."""
+RISK_CASES = (PLANE_CASE, "sudden-centroid", "uneven")
+"""Where the critic's value distribution and beta are traced (the paper's Fig. 5: plane, push, uneven)."""
+PROTOCOL = (PLANE_CASE, *TABLE1_SCENARIOS, *TRACKING_SCENARIOS)
+"""Every case of the evaluation, in the order it runs."""
+
+
+def parse_case(case: str) -> tuple[str, tuple[float, float, float] | None]:
+    """``scenario@vx`` -> (scenario, (vx, 0, 0)); ``scenario`` -> (scenario, None). ValueError if unknown."""
+    name, _, vx = case.partition("@")
+    if name not in SCENARIOS:
+        raise ValueError(
+            f"unknown scenario {name!r} in case {case!r}; valid scenarios: {', '.join(SCENARIOS)}"
+        )
+    return name, None if not vx else (float(vx), 0.0, 0.0)
+
+
+def gait_measures(contact: np.ndarray, min_air_steps: int = MIN_AIR_STEPS) -> tuple[float, float, float]:
+    """Steps per second, share of consecutive steps taken in turn by the two feet, single-support share.
+
+    ``contact`` is (steps, 2) booleans of one episode; a step is a foot leaving the ground for at least
+    ``min_air_steps`` control steps (shorter losses of contact are chatter, not steps).
+    """
+    starts = []
+    for foot in range(2):
+        air = np.concatenate([[False], ~contact[:, foot], [False]]).astype(np.int8)
+        edges = np.diff(air)
+        lift, land = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        real = lift[land - lift >= min_air_steps]
+        starts.append(real)
+    # A step alternates when the other foot stepped exactly once since this foot's previous step, and
+    # not together with it (which would be a two-footed hop).
+    turns = []
+    for own, other in ((starts[0], starts[1]), (starts[1], starts[0])):
+        for previous, current in itertools.pairwise(own):
+            between = other[(other > previous) & (other < current)]
+            together = np.abs(other - current).min(initial=min_air_steps) < min_air_steps
+            turns.append(len(between) == 1 and not together)
+    alternation = float(np.mean(turns)) if turns else 0.0
+    steps = sum(len(own) for own in starts)
+    rate = steps / (len(contact) * CONTROL_DT) if len(contact) else 0.0
+    single = float(np.mean(contact.sum(axis=1) == 1)) if len(contact) else 0.0
+    return rate, alternation, single
+
+
+@dataclass
+class RiskTrace:
+    """The critic's view along robot 0's episode (NaN after it ended), and averages over every robot-step."""
+
+    beta: np.ndarray
+    """(steps,) risk parameter of each state (Wang's beta; CVaR's alpha; 0 for a scalar critic)."""
+    iqr: np.ndarray
+    """(steps,) interquartile range of the return quantiles."""
+    atoms: np.ndarray
+    """(steps, n_quantiles) the sorted return quantiles (units of the normalized return when training
+    normalized rewards)."""
+    force: np.ndarray
+    """(steps,) magnitude of the external force (N) in the state."""
+    beta_mean: float
+    iqr_mean: float
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The trace as named arrays (for ``np.savez``)."""
+        return {"beta": self.beta, "iqr": self.iqr, "atoms": self.atoms, "force": self.force}
+
+
+def evaluate(
+    model: Any,
+    normalizer: Any | None,
+    scenario: str,
+    command: tuple[float, float, float] | None,
+    episodes: int,
+    seed: int,
+    *,
+    episode_steps: int | None = None,
+    workers: int | None = None,
+    risk: bool = False,
+) -> dict[str, float]:
+    """Run one episode on each of ``episodes`` robots and summarize them (see the module docstring).
+
+    ``normalizer``: the run's ``VecNormalize`` (observations are normalized as in training) or None.
+    ``episode_steps``: the time limit (default: the env's, 20 s); ``workers``: processes stepping the
+    robots (``zerith_gym.make_vec_env``; default one per core). With ``risk`` the result also holds
+    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``.
+    """
+    import zerith_gym
+
+    options: dict[str, Any] = {"scenario": scenario, "command": command}
+    if episode_steps is not None:
+        options["episode_steps"] = episode_steps
+    env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options)
+    try:
+        return _rollout(model, normalizer, env, episodes, risk)
+    finally:
+        env.close()
+
+
+def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: bool) -> dict[str, Any]:
+    obs = env.reset()
+    horizon = env.options.episode_steps
+    vx_cmd = np.array([info["command"][0] for info in env.reset_infos])
+    alive = np.ones(episodes, dtype=bool)
+    fell = np.zeros(episodes, dtype=bool)
+    vx = np.full((horizon, episodes), np.nan)
+    lin_err, yaw_err = np.full_like(vx, np.nan), np.full_like(vx, np.nan)
+    contact = np.zeros((horizon, episodes, 2), dtype=bool)
+    betas, iqrs, atoms, forces = [], [], [], []
+    risk_sums = np.zeros(3)  # beta, iqr, robot-steps
+    for t in range(horizon):
+        policy_obs = normalizer.normalize_obs(obs) if normalizer is not None else obs
+        if risk:
+            assessed = model.assess_risk(policy_obs)
+            risk_sums += (assessed.risk[alive].sum(), assessed.iqr[alive].sum(), alive.sum())
+            first = alive[0]
+            betas.append(assessed.risk[0] if first else np.nan)
+            iqrs.append(assessed.iqr[0] if first else np.nan)
+            atoms.append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
+            force = np.linalg.norm(obs["critic"][0, _CRITIC["external_force"]])
+            forces.append(force if first else np.nan)
+        action, _ = model.predict(policy_obs, deterministic=True)
+        obs, _, dones, infos = env.step(action)
+        critic = np.stack(
+            [
+                info.get("terminal_observation", obs)["critic"] if d else obs["critic"][i]
+                for i, (info, d) in enumerate(zip(infos, dones, strict=True))
+            ]
+        )
+        vx[t, alive] = critic[alive, _CRITIC["base_linear_velocity"]][:, 0]
+        contact[t, alive] = critic[alive, _CRITIC["foot_contact"]] > 0.5
+        lin_err[t, alive] = [infos[i]["lin_vel_error"] for i in np.flatnonzero(alive)]
+        yaw_err[t, alive] = [infos[i]["ang_vel_error"] for i in np.flatnonzero(alive)]
+        fell |= alive & np.array([info["fall"] for info in infos])
+        alive &= ~dones
+        if not alive.any():
+            break
+    gait = np.array([gait_measures(contact[~np.isnan(vx[:, i]), i]) for i in range(episodes)])
+    result: dict[str, Any] = {
+        "survive": float(np.mean(~fell)),
+        "vx_err": float(np.nanmean(np.abs(vx - vx_cmd))),
+        "vx": float(np.nanmean(vx)),
+        "lin_err": float(np.nanmean(lin_err)),
+        "yaw_err": float(np.nanmean(yaw_err)),
+        "steps_per_s": float(gait[:, 0].mean()),
+        "alternation": float(gait[:, 1].mean()),
+        "single_support": float(gait[:, 2].mean()),
+    }
+    if risk:
+        beta_mean, iqr_mean = (risk_sums[:2] / risk_sums[2]).tolist()
+        result["beta"], result["iqr"] = beta_mean, iqr_mean
+        result["trace"] = RiskTrace(
+            np.array(betas, dtype=float),
+            np.array(iqrs, dtype=float),
+            np.array(atoms, dtype=float),
+            np.array(forces, dtype=float),
+            beta_mean,
+            iqr_mean,
+        )
+    return result
+
+
+EVALUATION_FILE = "evaluation.json"
+
+
+def risk_file(folder: Path, case: str) -> Path:
+    """Where the risk trace of ``case`` is kept in a run folder (``risk_nominal-1.npz`` for ``nominal@1``)."""
+    return folder / f"risk_{case.replace('@', '-')}.npz"
+
+
+def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: int = 0) -> RunStatus:
+    """Evaluate the trained run in ``folder`` on every case of ``PROTOCOL``; return its final status.
+
+    Each case's metrics are added to ``evaluation.json`` as soon as the case is done (and risk traces
+    written to ``risk_<case>.npz``), so an interrupted evaluation continues with the next case. Results
+    of other evaluation settings, or of the model before it trained on, are dropped and redone.
+    """
+    from sb3_huri.zoo import load_run
+
+    path = folder / EVALUATION_FILE
+    wanted = {**asdict(settings.eval), "trained_to": status.trained_to}
+    done: dict[str, Any] = {}
+    if path.exists():
+        previous = read_json(path, "a run's evaluation")
+        if isinstance(previous, dict) and previous.get("settings") == wanted:
+            done = dict(previous.get("cases") or {})
+    model, normalizer = load_run(folder, settings.env)
+    status.state, status.eval_cases, status.eval_done = "evaluating", len(PROTOCOL), len(done)
+    write_status(folder, status)
+    began, seconds = time.time(), status.eval_seconds
+    for case in PROTOCOL:
+        if case in done:
+            continue
+        scenario, command = parse_case(case)
+        metrics = evaluate(
+            model,
+            normalizer,
+            scenario,
+            command,
+            settings.eval.episodes,
+            settings.eval.seed,
+            episode_steps=settings.eval.episode_steps,
+            workers=workers,
+            risk=case in RISK_CASES,
+        )
+        trace = metrics.pop("trace", None)
+        if trace is not None:
+            target = risk_file(folder, case)
+            temporary = target.with_name(f".{target.name}.tmp")
+            with open(temporary, "wb") as f:
+                np.savez(f, **trace.arrays())
+            os.replace(temporary, target)
+        done[case] = metrics
+        atomic_write_json(path, {"settings": wanted, "cases": done})
+        status.eval_done, status.eval_seconds = len(done), seconds + time.time() - began
+        write_status(folder, status)
+    status.evaluated, status.state = wanted, "done"
+    write_status(folder, status)
+    return status

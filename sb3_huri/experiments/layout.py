@@ -1,0 +1,308 @@
+"""The experiment folder: its settings, the grid of runs, each run's folder and status, written atomically.
+
+An experiment folder ``DIR`` holds::
+
+    DIR/experiment.json                       settings shared by every run, and the grid (method, seed)
+    DIR/<method>/<env>_<seed + 1>/            one run, in RL Zoo's layout (RL Zoo's run ids start at 1)
+        <env>.zip, <env>/{config,args}.yml, <env>/vecnormalize.pkl    the trained model (when trained)
+        status.json                           steps done, last checkpoint, trained, evaluated, times
+        checkpoints/model_<steps>.zip, checkpoints/vecnormalize_<steps>.pkl
+        curve.csv                             training return per rollout (the Fig. 3 analog reads it)
+        evaluation.json                       metrics per evaluation case (``evaluation.PROTOCOL``)
+        risk_<case>.npz                       the critic's trace in the risk cases (the Fig. 5 analog)
+    DIR/report.md, DIR/*.png                  written by ``python -m sb3_huri.experiments report DIR``
+
+Every JSON file is replaced atomically (written to a temporary file, then ``os.replace``), so a kill at
+any moment leaves either the old or the new version, never a torn one. A run's ``status.json`` names a
+checkpoint only once both of its files are complete: that is what a resumed run continues from.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+EXPERIMENT_FILE = "experiment.json"
+STATUS_FILE = "status.json"
+FORMAT = "sb3-huri-experiment"
+RUN_FORMAT = "sb3-huri-run"
+VERSION = 1
+
+
+class ExperimentError(Exception):
+    """A problem with the command or the output folder that the user has to resolve (no traceback)."""
+
+
+class RunBusy(ExperimentError):
+    """The run folder is locked by a live process (an earlier command still running, or another node)."""
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise
+
+
+def atomic_write_json(path: Path, data: Any) -> None:
+    """``data`` as indented JSON at ``path``, atomically."""
+    atomic_write_text(path, json.dumps(data, indent=1, sort_keys=True) + "\n")
+
+
+def read_json(path: Path, what: str) -> Any:
+    """The JSON object at ``path``; ExperimentError naming ``what`` the file should be if it is not JSON."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ExperimentError(f"{path} is corrupt ({error}); it should hold {what}") from error
+
+
+@dataclass(frozen=True)
+class EvalSettings:
+    """How every run is evaluated: episodes per case, time limit (control steps) and the robots' seed."""
+
+    episodes: int = 10
+    episode_steps: int = 1000
+    seed: int = 1000
+
+
+@dataclass
+class Settings:
+    """What every run of an experiment shares; stored in ``experiment.json``."""
+
+    env: str
+    preset: dict[str, Any]
+    """The RL Zoo preset of ``env`` (``sb3_huri.zoo.read_preset``), as read when the experiment began."""
+    timesteps: int
+    eval: EvalSettings = field(default_factory=EvalSettings)
+    checkpoint_freq: int = 50_000
+    runs: list[tuple[str, int]] = field(default_factory=list)
+    """The grid: (method, seed) of every run, in the order they were asked for."""
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["runs"] = [list(run) for run in self.runs]
+        return {"format": FORMAT, "version": VERSION, **data}
+
+    @classmethod
+    def from_json(cls, data: Any, path: Path) -> Settings:
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise ExperimentError(
+                f'{path} is not an sb3-huri experiment file (no "format": "{FORMAT}"): '
+                "choose a new or empty --out folder"
+            )
+        if data.get("version") != VERSION:
+            raise ExperimentError(f"{path} has format version {data.get('version')!r}; expected {VERSION}")
+        try:
+            return cls(
+                env=str(data["env"]),
+                preset=dict(data["preset"]),
+                timesteps=int(data["timesteps"]),
+                eval=EvalSettings(**data["eval"]),
+                checkpoint_freq=int(data["checkpoint_freq"]),
+                runs=[(str(method), int(seed)) for method, seed in data["runs"]],
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise ExperimentError(f"{path} is corrupt: {error!r}") from error
+
+
+def experiment_file(out: Path) -> Path:
+    return out / EXPERIMENT_FILE
+
+
+def load_settings(out: Path) -> Settings:
+    """The settings of the experiment in ``out``; ExperimentError for a missing, foreign or corrupt one."""
+    path = experiment_file(out)
+    if not out.is_dir():
+        raise ExperimentError(f"{out} is not a folder")
+    if not path.is_file():
+        raise ExperimentError(
+            f"{out} holds no experiment ({EXPERIMENT_FILE} missing): "
+            "`python -m sb3_huri.experiments run --out DIR` creates one"
+        )
+    return Settings.from_json(read_json(path, "an experiment's settings"), path)
+
+
+def open_experiment(out: Path, requested: Settings) -> Settings:
+    """Create ``out`` for ``requested`` or continue the experiment already there, and return its settings.
+
+    Continuing: the env and preset must be those it began with (runs of one experiment share them);
+    ``timesteps`` may grow (finished runs then train on to the new total) but not shrink; the evaluation
+    settings follow the command (runs evaluated otherwise are evaluated again); new (method, seed) pairs
+    join the grid. A folder that is not empty and holds no experiment is refused, so that nothing of
+    another program's is overwritten.
+    """
+    path = experiment_file(out)
+    if out.exists() and not out.is_dir():
+        raise ExperimentError(f"--out {out} exists and is not a folder")
+    if not path.exists():
+        if out.is_dir() and any(out.iterdir()):
+            raise ExperimentError(
+                f"{out} is not empty and holds no experiment ({EXPERIMENT_FILE} missing): "
+                "choose a new or empty --out folder"
+            )
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(path, requested.to_json())
+        return requested
+    current = Settings.from_json(read_json(path, "an experiment's settings"), path)
+    if current.env != requested.env:
+        raise ExperimentError(
+            f"{out} holds an experiment on {current.env}, not {requested.env}: choose another --out folder"
+        )
+    if current.preset != requested.preset:
+        changed = sorted(
+            key
+            for key in set(current.preset) | set(requested.preset)
+            if current.preset.get(key) != requested.preset.get(key)
+        )
+        raise ExperimentError(
+            f"{out} was started with another preset of {current.env} (differs in: {', '.join(changed)}); "
+            "runs of one experiment share their preset: choose another --out folder"
+        )
+    if requested.timesteps < current.timesteps:
+        raise ExperimentError(
+            f"{out} trains every run to {current.timesteps} steps; --timesteps {requested.timesteps} would "
+            "leave runs beyond it (ask for at least as many, or use another --out folder)"
+        )
+    merged = Settings(
+        env=current.env,
+        preset=current.preset,
+        timesteps=requested.timesteps,
+        eval=requested.eval,
+        checkpoint_freq=requested.checkpoint_freq,
+        runs=list(dict.fromkeys([*current.runs, *requested.runs])),
+    )
+    atomic_write_json(path, merged.to_json())
+    return merged
+
+
+def run_folder(out: Path, env: str, method: str, seed: int) -> Path:
+    """``out/<method>/<env>_<seed + 1>``: RL Zoo's layout, whose run ids start at 1 (``--exp-id``)."""
+    return out / method / f"{env}_{seed + 1}"
+
+
+@dataclass
+class RunStatus:
+    """A run's progress, in ``status.json``: what a resumed command continues from."""
+
+    method: str
+    seed: int
+    env: str
+    checkpoint: int | None = None
+    """Steps of the last complete checkpoint (``checkpoints/model_<steps>.zip`` and its normalizer)."""
+    steps: int = 0
+    """Steps trained so far (ahead of the checkpoint while training runs)."""
+    trained_to: int | None = None
+    """The total the run was last trained to completion for (None while it trains)."""
+    evaluated: dict[str, Any] | None = None
+    """The evaluation settings of the finished evaluation (None until it is done)."""
+    eval_done: int = 0
+    eval_cases: int = 0
+    train_seconds: float = 0.0
+    eval_seconds: float = 0.0
+    resumed_from: list[int] = field(default_factory=list)
+    """Checkpoint steps each resumption started from."""
+    state: str = "pending"
+    """pending, training, evaluating, done or failed (for the progress display)."""
+    error: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"format": RUN_FORMAT, "version": VERSION, **asdict(self)}
+
+
+def read_status(folder: Path, method: str, seed: int, env: str) -> RunStatus:
+    """The status of the run in ``folder`` (a fresh one when the folder has none yet).
+
+    ExperimentError for a corrupt or foreign status, or one of another run (method, seed or env differ).
+    """
+    path = folder / STATUS_FILE
+    if not path.exists():
+        return RunStatus(method, seed, env)
+    data = read_json(path, "a run's status")
+    if not isinstance(data, dict) or data.get("format") != RUN_FORMAT:
+        raise ExperimentError(f"{path} is not an sb3-huri run status; move the folder {folder} away")
+    try:
+        fields = {k: v for k, v in data.items() if k not in ("format", "version")}
+        status = RunStatus(**fields)
+    except TypeError as error:
+        raise ExperimentError(f"{path} is corrupt: {error}; delete {folder} to train the run anew") from error
+    if (status.method, status.seed, status.env) != (method, seed, env):
+        raise ExperimentError(
+            f"{path} belongs to {status.method} seed {status.seed} on {status.env}, "
+            f"not {method} seed {seed} on {env}"
+        )
+    return status
+
+
+def write_status(folder: Path, status: RunStatus) -> None:
+    atomic_write_json(folder / STATUS_FILE, status.to_json())
+
+
+@contextlib.contextmanager
+def run_lock(folder: Path) -> Iterator[None]:
+    """Hold the run's lock file while training or evaluating it (RunBusy if a live process holds it).
+
+    The OS releases the lock when its holder dies, however it dies, so a killed command never leaves a
+    stale lock; the lock keeps a second command (or a task Ray retried elsewhere while the first still
+    runs) from writing the same run at once.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # no advisory locks (Windows): one command per folder is the user's to ensure
+        yield
+        return
+    with open(folder / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            raise RunBusy(f"{folder} is in use by another process") from error
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def validate_grid(env: str, methods: Sequence[str], seeds: Sequence[int]) -> list[tuple[str, int]]:
+    """Every (method, seed) of the grid; ExperimentError for an unknown method or env, or an empty grid."""
+    from sb3_huri.zoo import METHODS
+
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise ExperimentError(f"unknown method(s) {', '.join(unknown)}; methods: {', '.join(METHODS)}")
+    check_env(env)
+    if not methods or not seeds:
+        raise ExperimentError("the grid is empty: give at least one method and one seed")
+    if any(seed < 0 for seed in seeds):
+        raise ExperimentError(f"seeds must be non-negative, got {list(seeds)}")
+    return [(m, s) for m in dict.fromkeys(methods) for s in dict.fromkeys(seeds)]
+
+
+def check_env(env: str) -> None:
+    """ExperimentError unless ``env`` is a registered Zerith env (the runs train on its batched VecEnv)."""
+    import gymnasium as gym
+
+    import zerith_gym  # noqa: F401  (registers the Zerith envs)
+    from sb3_huri.zoo import ZERITH_ENTRY_POINT
+
+    zerith = [spec.id for spec in gym.registry.values() if spec.entry_point == ZERITH_ENTRY_POINT]
+    if env not in zerith:
+        raise ExperimentError(
+            f"unknown env {env!r}: the experiments train Zerith robots on their batched env; envs: "
+            f"{', '.join(zerith)}"
+        )

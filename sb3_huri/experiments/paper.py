@@ -1,0 +1,43 @@
+"""The paper's numbers and the orderings it reports, to set our results beside.
+
+From the HuRi paper (DESIGN.md section 6): Table 1, the success rate (episodes without a fall) of each
+method under continuous (U[0, 100] N) and sudden (U[150, 200] N) forces on the centroid, hands and feet,
+5 seeds x 10 runs each; the average training return of each method (its Fig. 3); and the risk the critic
+reads in its Fig. 5: interquartile range on uneven ground > under a push > walking on the plane. The paper
+gives no numbers for HuRi without IQR and HuRi with CVaR in Table 1; they are reported without a
+reference.
+"""
+
+from __future__ import annotations
+
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
+
+TABLE1: dict[str, dict[str, float]] = {
+    method: dict(zip(TABLE1_SCENARIOS, rates, strict=True))
+    for method, rates in {
+        "huri-baseline": (0.666, 0.618, 0.658, 0.575, 0.593, 0.589),
+        "huri-cvar0.5": (0.687, 0.641, 0.698, 0.609, 0.627, 0.627),
+        "huri-no-rnd": (0.819, 0.770, 0.848, 0.776, 0.808, 0.808),
+        "huri": (0.856, 0.809, 0.866, 0.832, 0.812, 0.817),
+    }.items()
+}
+"""Success rate per method and Table-1 scenario."""
+
+TRAINING_RETURN = {"huri": 90.86, "huri-no-rnd": 86.93, "huri-cvar0.5": 84.17, "huri-baseline": 83.28}
+"""Average training return per method (the paper's reward scale, not ours: only the order compares)."""
+
+RANKING = ("huri", "huri-no-rnd", "huri-cvar0.5", "huri-baseline")
+"""The paper's order, best first, in every Table-1 column and in the training return."""
+
+RISK_ORDER = ("uneven", "sudden push", "plane")
+"""The critic's interquartile range, largest first (Fig. 5): uneven ground, a sudden push, the plane."""
+
+LABELS = {
+    "huri-baseline": "Baseline (PPO)",
+    "huri-cvar0.5": "CVaR0.5",
+    "huri-no-rnd": "HuRi w/o RND",
+    "huri-no-iqr": "HuRi w/o IQR",
+    "huri": "HuRi",
+    "huri-cvar": "HuRi-CVaR",
+}
+"""The paper's names of the methods."""

@@ -1,0 +1,97 @@
+"""One run's work, as a backend executes it: train it to the requested steps, then evaluate it.
+
+``execute_run`` is the unit both backends ship (a process-pool job or a Ray task). It takes everything
+from the experiment folder, so it can run on any machine that sees that folder, and it can be started
+again at any time: it trains on from the last checkpoint and evaluates only what is missing.
+"""
+
+from __future__ import annotations
+
+import traceback
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from sb3_huri.experiments.layout import (
+    ExperimentError,
+    RunBusy,
+    load_settings,
+    read_status,
+    run_folder,
+    run_lock,
+    write_status,
+)
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """A run of the grid for a backend: the experiment folder, the run, and the cores it may use."""
+
+    out: str
+    """The experiment folder (absolute: Ray nodes must see it at the same path)."""
+    method: str
+    seed: int
+    cpus: int = 1
+    """Cores for this run: its robots are stepped by that many worker processes when it has enough
+    robots for them (``training.env_workers``), else in the run's own process."""
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What became of a run: ``done``, ``busy`` (locked by a live process) or ``failed``."""
+
+    method: str
+    seed: int
+    state: str
+    message: str = ""
+    steps: int = 0
+    train_seconds: float = 0.0
+    eval_seconds: float = 0.0
+
+
+def execute_run(task: RunTask) -> RunOutcome:
+    """Train the run of ``task`` to the experiment's steps (resuming), then evaluate it if it is not yet.
+
+    Never raises for a failing run: the error is kept in its ``status.json`` and returned, so one broken
+    run does not stop the grid (Ctrl-C and kills stop it, and are resumed by the next command).
+    """
+    from sb3_huri.experiments.evaluation import evaluate_run
+    from sb3_huri.experiments.training import env_workers, train_run
+
+    out = Path(task.out)
+    settings = load_settings(out)
+    folder = run_folder(out, settings.env, task.method, task.seed)
+    try:
+        with run_lock(folder):
+            status = read_status(folder, task.method, task.seed, settings.env)
+            status.error = None
+            workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
+            try:
+                if status.trained_to is None or status.trained_to < settings.timesteps:
+                    status = train_run(folder, status, settings, workers)
+                if status.evaluated != {**asdict(settings.eval), "trained_to": status.trained_to}:
+                    status = evaluate_run(folder, status, settings, workers)
+            except Exception:
+                status.state, status.error = "failed", traceback.format_exc()
+                write_status(folder, status)
+                return RunOutcome(task.method, task.seed, "failed", status.error, status.steps)
+            status.state = "done"
+            write_status(folder, status)
+            return RunOutcome(
+                task.method, task.seed, "done", "", status.steps, status.train_seconds, status.eval_seconds
+            )
+    except RunBusy as error:
+        return RunOutcome(task.method, task.seed, "busy", str(error))
+    except ExperimentError as error:
+        return RunOutcome(task.method, task.seed, "failed", str(error))
+
+
+def is_finished(out: Path, method: str, seed: int) -> bool:
+    """Whether the run is trained to the experiment's steps and evaluated with its settings."""
+    settings = load_settings(out)
+    folder = run_folder(out, settings.env, method, seed)
+    status = read_status(folder, method, seed, settings.env)
+    return (
+        status.trained_to is not None
+        and status.trained_to >= settings.timesteps
+        and status.evaluated == {**asdict(settings.eval), "trained_to": status.trained_to}
+    )

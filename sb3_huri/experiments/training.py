@@ -1,0 +1,218 @@
+"""Training one run of the grid, resumable from its last checkpoint.
+
+A run trains what ``examples/train_zerith.py`` and ``rl_zoo3 train --algo <method>`` train: the env's
+preset (``sb3_huri.zoo.read_preset``) on the batched env (``zerith_gym.make_vec_env``) with ``VecNormalize``
+and the preset's callbacks (reward-term logs, randomization curriculum), ``HuRiPPO(variant=METHODS[method])``.
+It adds, per run folder (``layout``):
+
+- checkpoints of the model and its normalizer at the first rollout boundary after every
+  ``checkpoint_freq`` steps (between rollouts, so that a checkpoint holds exactly the steps it trained
+  on), each file written to a temporary name and renamed, then committed by naming it in
+  ``status.json``; the two newest are kept;
+- ``curve.csv``: after every rollout, the steps and SB3's mean return and length of the last 100
+  episodes (what ``ep_rew_mean`` logs);
+- resuming: the model, normalizer and step count of the last committed checkpoint; the curriculum
+  follows the model's step count, so it continues at its stage. The robots of a resumed run are seeded
+  ``seed + steps`` (fresh draws rather than a replay of the first episodes), and the curve loses the
+  rows after the checkpoint (they are trained again).
+
+The final model is written in RL Zoo's layout (``sb3_huri.zoo.save_run``) and is also a checkpoint, so a
+later command with a larger ``--timesteps`` trains on from it.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_text, write_status
+
+CURVE_FILE = "curve.csv"
+CURVE_COLUMNS = ("timesteps", "ep_rew_mean", "ep_len_mean", "seconds")
+CHECKPOINTS = "checkpoints"
+KEEP_CHECKPOINTS = 2
+
+
+def checkpoint_paths(folder: Path, steps: int) -> tuple[Path, Path]:
+    """The model and normalizer files of the checkpoint after ``steps`` steps."""
+    base = folder / CHECKPOINTS
+    return base / f"model_{steps}.zip", base / f"vecnormalize_{steps}.pkl"
+
+
+def _replace_file(write: Callable[[str], None], path: Path) -> None:
+    """Write a file through ``write(temporary_path)`` and rename it to ``path`` (never a torn file)."""
+    temporary = path.with_name(f".{path.name}.tmp")
+    write(str(temporary))
+    os.replace(temporary, path)
+
+
+def read_curve(folder: Path) -> list[dict[str, float]]:
+    """The rows of a run's ``curve.csv`` (a torn last line, from a kill while writing it, is left out)."""
+    path = folder / CURVE_FILE
+    if not path.exists():
+        return []
+    rows = []
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            try:
+                rows.append({key: float(row[key]) for key in CURVE_COLUMNS})
+            except (KeyError, TypeError, ValueError):
+                continue
+    return rows
+
+
+def _trim_curve(folder: Path, steps: int) -> None:
+    """Keep the curve's rows up to ``steps`` (those after a checkpoint are trained again on resuming)."""
+    kept = [row for row in read_curve(folder) if row["timesteps"] <= steps]
+    text = io.StringIO()
+    writer = csv.DictWriter(text, CURVE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in kept:
+        values = {key: repr(value) for key, value in row.items()}
+        writer.writerow({**values, "timesteps": int(row["timesteps"])})
+    atomic_write_text(folder / CURVE_FILE, text.getvalue())
+
+
+def env_workers(cpus: int, n_envs: int) -> int:
+    """Processes stepping a run's robots when it has ``cpus`` cores: one per core with at least 8 robots
+    each (``zerith_gym.workers``), or 0 (robots stepped in the run's own process) where that gives one."""
+    workers = min(cpus, n_envs // 8)
+    return workers if workers >= 2 else 0
+
+
+def train_run(
+    folder: Path,
+    status: RunStatus,
+    settings: Settings,
+    workers: int = 0,
+) -> RunStatus:
+    """Train the run in ``folder`` to ``settings.timesteps`` steps, from its last checkpoint if it has one.
+
+    ``workers``: processes stepping the robots (``zerith_gym.make_vec_env``). The status is written after
+    every rollout (the steps, for the progress display). Returns the final status.
+    """
+    import gymnasium as gym
+    import torch as th
+    from rl_zoo3.utils import get_callback_list
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    import zerith_gym
+    from sb3_huri import HuRiPPO
+    from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, save_run
+
+    th.set_num_threads(1)  # small networks: one thread is fastest, and several runs share the machine
+    preset = dict(settings.preset)
+    env_kwargs = {**(gym.spec(settings.env).kwargs or {}), **(preset.get("env_kwargs") or {})}
+    norm = normalize_kwargs(preset)
+    resume = status.checkpoint
+    seed = status.seed + (resume or 0)
+    env = zerith_gym.make_vec_env(int(preset["n_envs"]), seed=seed, workers=workers, **env_kwargs)
+    try:
+        if resume is not None:
+            model_path, stats_path = checkpoint_paths(folder, resume)
+            if norm is not None:
+                env = VecNormalize.load(str(stats_path), env)
+            model = HuRiPPO.load(model_path, env, device="cpu")
+            model.set_random_seed(seed)
+            status.resumed_from.append(resume)
+            _trim_curve(folder, resume)
+        else:
+            if norm is not None:
+                env = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
+            model = HuRiPPO(
+                preset["policy"],
+                env,
+                variant=METHODS[status.method],
+                seed=status.seed,
+                device="cpu",
+                verbose=0,
+                **algorithm_kwargs(preset),
+            )
+            _trim_curve(folder, 0)
+        status.state, status.trained_to, status.evaluated = "training", None, None
+        status.steps = model.num_timesteps
+        write_status(folder, status)
+
+        class Bookkeeping(BaseCallback):
+            """Checkpoints between rollouts, the curve and the status after every rollout."""
+
+            def __init__(self) -> None:
+                super().__init__()
+                self.began = time.time()
+                self.seconds = status.train_seconds
+                self.last_checkpoint = resume or 0
+
+            def elapsed(self) -> float:
+                return self.seconds + time.time() - self.began
+
+            def _on_rollout_start(self) -> None:
+                steps = self.model.num_timesteps
+                if steps - self.last_checkpoint >= settings.checkpoint_freq:
+                    self.checkpoint()
+
+            def checkpoint(self) -> None:
+                steps = self.model.num_timesteps
+                model_path, stats_path = checkpoint_paths(folder, steps)
+                model_path.parent.mkdir(exist_ok=True)
+                _replace_file(self.model.save, model_path)
+                vec_normalize = self.model.get_vec_normalize_env()
+                if vec_normalize is not None:
+                    _replace_file(vec_normalize.save, stats_path)
+                status.checkpoint, status.steps, status.train_seconds = steps, steps, self.elapsed()
+                write_status(folder, status)
+                self.last_checkpoint = steps
+                _prune_checkpoints(folder, keep=steps)
+
+            def _on_rollout_end(self) -> None:
+                buffer = self.model.ep_info_buffer
+                returns = [info["r"] for info in buffer] if buffer else []
+                lengths = [info["l"] for info in buffer] if buffer else []
+                mean = (sum(returns) / len(returns)) if returns else float("nan")
+                length = (sum(lengths) / len(lengths)) if lengths else float("nan")
+                steps = self.model.num_timesteps
+                with open(folder / CURVE_FILE, "a") as f:
+                    f.write(f"{steps},{mean!r},{length!r},{self.elapsed():.3f}\n")
+                status.steps, status.train_seconds = steps, self.elapsed()
+                write_status(folder, status)
+
+            def _on_step(self) -> bool:
+                return True
+
+        bookkeeping = Bookkeeping()
+        callbacks = [*get_callback_list(preset), bookkeeping]
+        remaining = settings.timesteps - model.num_timesteps
+        if remaining > 0:
+            model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=resume is None)
+        if status.checkpoint != model.num_timesteps:
+            bookkeeping.checkpoint()
+        save_run(
+            model,
+            folder,
+            preset,
+            {"algo": status.method, "env": settings.env, "seed": status.seed, "env_kwargs": env_kwargs},
+            env_id=settings.env,
+        )
+        status.trained_to, status.steps = settings.timesteps, model.num_timesteps
+        status.train_seconds = bookkeeping.elapsed()
+        write_status(folder, status)
+        return status
+    finally:
+        env.close()
+
+
+def _prune_checkpoints(folder: Path, keep: int) -> None:
+    """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest)."""
+    steps = sorted(
+        int(path.stem.split("_")[1])
+        for path in (folder / CHECKPOINTS).glob("model_*.zip")
+        if path.stem.split("_")[1].isdigit()
+    )
+    for old in steps[:-KEEP_CHECKPOINTS]:
+        if old != keep:
+            for path in checkpoint_paths(folder, old):
+                path.unlink(missing_ok=True)
