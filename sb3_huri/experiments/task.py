@@ -54,9 +54,12 @@ def execute_run(task: RunTask) -> RunOutcome:
     Never raises for a failing run: the error is kept in its ``status.json`` and returned, so one broken
     run does not stop the grid (Ctrl-C and kills stop it, and are resumed by the next command).
     """
+    import torch as th
+
     from sb3_huri.experiments.evaluation import evaluate_run
     from sb3_huri.experiments.training import env_workers, train_run
 
+    th.set_num_threads(1)  # small networks: one thread is fastest, and the runs share the machine
     out = Path(task.out)
     settings = load_settings(out)
     folder = run_folder(out, settings.env, task.method, task.seed)
@@ -64,11 +67,12 @@ def execute_run(task: RunTask) -> RunOutcome:
         with run_lock(folder):
             status = read_status(folder, task.method, task.seed, settings.env)
             status.error = None
-            workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
             try:
                 if status.trained_to is None or status.trained_to < settings.timesteps:
+                    workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
                     status = train_run(folder, status, settings, workers)
                 if status.evaluated != {**asdict(settings.eval), "trained_to": status.trained_to}:
+                    workers = env_workers(task.cpus, settings.eval.episodes)
                     status = evaluate_run(folder, status, settings, workers)
             except Exception:
                 status.state, status.error = "failed", traceback.format_exc()
