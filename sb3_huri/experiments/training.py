@@ -138,58 +138,53 @@ def train_run(
         status.steps = model.num_timesteps
         write_status(folder, status)
 
+        began, seconds_before = time.time(), status.train_seconds
+
+        def elapsed() -> float:
+            return seconds_before + time.time() - began
+
+        def checkpoint() -> None:
+            """Model and normalizer to temporary files, renamed, then named in the status (the commit)."""
+            steps = model.num_timesteps
+            model_path, stats_path = checkpoint_paths(folder, steps)
+            model_path.parent.mkdir(exist_ok=True)
+            _replace_file(model.save, model_path)
+            vec_normalize = model.get_vec_normalize_env()
+            if vec_normalize is not None:
+                _replace_file(vec_normalize.save, stats_path)
+            status.checkpoint, status.steps, status.train_seconds = steps, steps, elapsed()
+            write_status(folder, status)
+            _prune_checkpoints(folder, keep=steps)
+
         class Bookkeeping(BaseCallback):
-            """Checkpoints between rollouts, the curve and the status after every rollout."""
-
-            def __init__(self) -> None:
-                super().__init__()
-                self.began = time.time()
-                self.seconds = status.train_seconds
-                self.last_checkpoint = resume or 0
-
-            def elapsed(self) -> float:
-                return self.seconds + time.time() - self.began
+            """A checkpoint between rollouts every ``checkpoint_freq`` steps; after every rollout, the
+            curve's row and the status."""
 
             def _on_rollout_start(self) -> None:
-                steps = self.model.num_timesteps
-                if steps - self.last_checkpoint >= settings.checkpoint_freq:
-                    self.checkpoint()
-
-            def checkpoint(self) -> None:
-                steps = self.model.num_timesteps
-                model_path, stats_path = checkpoint_paths(folder, steps)
-                model_path.parent.mkdir(exist_ok=True)
-                _replace_file(self.model.save, model_path)
-                vec_normalize = self.model.get_vec_normalize_env()
-                if vec_normalize is not None:
-                    _replace_file(vec_normalize.save, stats_path)
-                status.checkpoint, status.steps, status.train_seconds = steps, steps, self.elapsed()
-                write_status(folder, status)
-                self.last_checkpoint = steps
-                _prune_checkpoints(folder, keep=steps)
+                if self.model.num_timesteps - (status.checkpoint or 0) >= settings.checkpoint_freq:
+                    checkpoint()
 
             def _on_rollout_end(self) -> None:
-                buffer = self.model.ep_info_buffer
-                returns = [info["r"] for info in buffer] if buffer else []
-                lengths = [info["l"] for info in buffer] if buffer else []
+                buffer = self.model.ep_info_buffer or []
+                returns = [info["r"] for info in buffer]
+                lengths = [info["l"] for info in buffer]
                 mean = (sum(returns) / len(returns)) if returns else float("nan")
                 length = (sum(lengths) / len(lengths)) if lengths else float("nan")
                 steps = self.model.num_timesteps
                 with open(folder / CURVE_FILE, "a") as f:
-                    f.write(f"{steps},{mean!r},{length!r},{self.elapsed():.3f}\n")
-                status.steps, status.train_seconds = steps, self.elapsed()
+                    f.write(f"{steps},{mean!r},{length!r},{elapsed():.3f}\n")
+                status.steps, status.train_seconds = steps, elapsed()
                 write_status(folder, status)
 
             def _on_step(self) -> bool:
                 return True
 
-        bookkeeping = Bookkeeping()
-        callbacks = [*get_callback_list(preset), bookkeeping]
+        callbacks = [*get_callback_list(preset), Bookkeeping()]
         remaining = settings.timesteps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=resume is None)
         if status.checkpoint != model.num_timesteps:
-            bookkeeping.checkpoint()
+            checkpoint()
         save_run(
             model,
             folder,
@@ -198,7 +193,7 @@ def train_run(
             env_id=settings.env,
         )
         status.trained_to, status.steps = settings.timesteps, model.num_timesteps
-        status.train_seconds = bookkeeping.elapsed()
+        status.train_seconds = elapsed()
         write_status(folder, status)
         return status
     finally:
