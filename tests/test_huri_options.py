@@ -222,8 +222,8 @@ def test_expectation_loss_reading_is_used_in_training_and_saved(tmp_path, readin
     assert HuRiPPO.load(tmp_path / "model.zip").expectation_loss == reading
 
 
-def test_default_expectation_loss_is_the_target_reading():
-    assert HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=64).expectation_loss == "target"
+def test_default_expectation_loss_is_eq_5_as_printed():
+    assert HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=64).expectation_loss == "distorted"
 
 
 def test_rnd_kwargs_reach_the_rnd_module():

@@ -117,8 +117,9 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
     :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
-    :param expectation_loss: ``"target"``: the predicted mean against the target atoms' mean; ``"distorted"``:
-        the predicted mean against its own distorted mean (eq. 5 as printed, a spread penalty)
+    :param expectation_loss: ``"distorted"``: the predicted mean against its own distorted mean (eq. 5 as
+        printed, which also penalizes the spread); ``"target"``: the predicted mean against the target atoms'
+        mean (see ``sb3_huri.common.expectation`` and the docs for the measurements behind the default)
     :param rnd_kwargs: keyword arguments of the :class:`~sb3_huri.common.rnd.RandomNetworkDistillation`
         (``target_net_arch``, ``predictor_net_arch``, ``output_dim``, ``learning_rate``, ``normalize_error``,
         ...); ``None`` takes ``policy_kwargs["rnd_kwargs"]`` if given, else its defaults (the paper's)
@@ -173,7 +174,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         sr_lambda: float = 1.0,
         quantile_coef: float = 1.0,
         expectation_coef: float = 0.05,
-        expectation_loss: str = "target",
+        expectation_loss: str = "distorted",
         rnd_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
