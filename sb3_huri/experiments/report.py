@@ -289,8 +289,8 @@ def write_report(out: str | Path) -> Path:
         "The critic's interquartile range (IQR, normalized-return units) and risk parameter beta (Wang; "
         "CVaR methods: alpha; 0 for the scalar baseline critic), means over every robot-step. "
         f"Figure: ![risk]({RISK_FIGURE}) (top: CDF of the return quantiles, robot 0 of the first seed, "
-        "averaged over its episode, under the push over the pushes' steps; bottom: beta along that episode, "
-        "the push's force in grey).",
+        "averaged over its episode, under the push over the pushes' steps, or all of its steps if it fell "
+        "before the first push; bottom: beta along that episode, the push's force in grey).",
         "",
         "| method | "
         + " | ".join(f"IQR {RISK_LABELS[c]}" for c in RISK_CASES)
