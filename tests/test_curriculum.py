@@ -133,3 +133,38 @@ def test_fall_rate_gate_holds_a_stage_until_the_robots_stop_falling() -> None:
     assert rollout(200, []) == 0.5
     assert rollout(300, []) == 0.5  # no episode ended: no evidence, the stage holds
     assert [s.name for s in env.scenarios] == ["trainx0", "trainx0.25", "trainx0.5"]
+
+
+def test_update_threads_switch_by_phase_and_restore() -> None:
+    import torch as th
+    from stable_baselines3.common.callbacks import ConvertCallback
+
+    from zerith_gym.callbacks import UpdateThreads
+
+    env = zerith_gym.make_vec_env(2, seed=0, obs_mode="policy", episode_steps=16, workers=0)
+    model = PPO(
+        "MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8])
+    )
+    seen = {"collect": set(), "update": set()}
+    train = model.train
+
+    def recording_train() -> None:
+        seen["update"].add(th.get_num_threads())
+        train()
+
+    model.train = recording_train
+    before = th.get_num_threads()
+    th.set_num_threads(3)
+    try:
+
+        def during_rollout(locals_, globals_) -> bool:
+            seen["collect"].add(th.get_num_threads())
+            return True
+
+        model.learn(64, callback=[UpdateThreads(collect=1, update=2), ConvertCallback(during_rollout)])
+        assert seen == {"collect": {1}, "update": {2}}
+        assert th.get_num_threads() == 3  # restored
+    finally:
+        th.set_num_threads(before)
+    with pytest.raises(ValueError, match="positive integer"):
+        UpdateThreads(collect=0)

@@ -4,6 +4,8 @@
   rollout, so that a user tuning reward weights sees which term moves.
 - `RandomizationCurriculum` grows the training scenario's randomization, pushes and external forces from
   none to full during training, by timesteps, optionally gated by the fall rate.
+- `UpdateThreads` gives torch one thread while the robots are stepped and every core while the networks
+  are updated, when the env's worker processes sleep (docs/performance.md has the gain).
 
 From Python:
 
@@ -17,6 +19,7 @@ or in an RL Zoo hyperparameter file:
       - zerith_gym.callbacks.RewardTermsLogger
       - zerith_gym.callbacks.RandomizationCurriculum:
           steps: 6000000
+      - zerith_gym.callbacks.UpdateThreads
 """
 
 from __future__ import annotations
@@ -24,10 +27,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, get_scenario, scaled_scenario
+from zerith_gym.workers import available_cores
 
 
 class RewardTermsLogger(BaseCallback):
@@ -151,3 +156,38 @@ class RandomizationCurriculum(BaseCallback):
                 self._episodes += 1
                 self._falls += bool(info.get("fall", False))
         return True
+
+
+class UpdateThreads(BaseCallback):
+    """Torch threads by phase: `collect` while rollouts are collected, `update` while the networks learn.
+
+    While robots are stepped, the env's worker processes (or physics threads) use the cores, and a
+    second torch thread only competes with them (its threads spin between operations); while the
+    networks update, the workers sleep and torch can use every core. Default: 1 and every core. The
+    thread count of before training is restored at its end. Works with any SB3 on-policy algorithm.
+    """
+
+    def __init__(self, collect: int = 1, update: int | None = None, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        update = available_cores() if update is None else update
+        for name, value in (("collect", collect), ("update", update)):
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"UpdateThreads {name} must be a positive integer, got {value!r}")
+        self.collect, self.update = collect, update
+        self._before: int | None = None
+
+    def _on_training_start(self) -> None:
+        self._before = th.get_num_threads()
+
+    def _on_rollout_start(self) -> None:
+        th.set_num_threads(self.collect)
+
+    def _on_rollout_end(self) -> None:
+        th.set_num_threads(self.update)
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_training_end(self) -> None:
+        if self._before is not None:
+            th.set_num_threads(self._before)
