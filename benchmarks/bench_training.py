@@ -9,15 +9,18 @@ machine), or on SB3's `DummyVecEnv` of single envs with `--vec dummy`, and print
 - the share of that time spent collecting rollouts (env steps and policy inference),
 - the ratio to raw physics on all cores: `mj_step(nstep=4)` of the same robots (the env's own randomized
   models) in as many threads as cores, measured between the training runs of the same configuration,
-- HuRiPPO's wall time per env step relative to SB3 PPO's (same env, same networks).
+- HuRiPPO's wall time per env step relative to SB3 PPO's (same env, same networks, same callbacks).
+
+Both algorithms run with the preset's callbacks (RL Zoo reads them the same way), among them
+`UpdateThreads`: torch on one thread while collecting, on every core while updating.
 
     python benchmarks/bench_training.py                                   # the preset: 32 robots
     python benchmarks/bench_training.py --num-envs 32 64 --iterations 5
     python benchmarks/bench_training.py --workers 0 --physics-threads 1 2   # in-process env, for reference
     python benchmarks/bench_training.py --num-envs 256 1024 --threads 4     # a 16-core machine
 
-`--threads` sets torch's threads (default: torch's own choice, one per core). The machine's other load
-changes absolute rates; the ratios are what to compare.
+`--threads` sets torch's threads at the start (default 1; the preset's `UpdateThreads` then switches
+them by phase). The machine's other load changes absolute rates; the ratios are what to compare.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import time
 import numpy as np
 import torch
 from bench_env import physics_rate, random_actions
+from rl_zoo3.utils import get_callback_list
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
@@ -81,14 +85,17 @@ def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int
     return HuRiPPO("MultiInputPolicy", env, variant=algo, seed=seed, device="cpu", **kwargs)
 
 
-def train_rate(algo: str, preset: dict, env: VecEnv, net: list[int] | None, iterations: int, seed: int):
+def train_rate(
+    algo: str, preset: dict, env: VecEnv, net: list[int] | None, iterations: int, seed: int, callbacks: bool
+):
     """Env steps/s with updates over `iterations` iterations after a warm-up one, and the collecting share."""
     model = build(algo, preset, env, net, seed)
     per_iteration = env.num_envs * model.n_steps
-    model.learn(per_iteration)  # warm-up: allocations, first resets
+    callbacks = get_callback_list(preset) if callbacks else []  # reward-term logs, curriculum, threads
+    model.learn(per_iteration, callback=callbacks)  # warm-up: allocations, first resets
     timer = RolloutTimer()
     start = time.perf_counter()
-    model.learn(iterations * per_iteration, callback=timer, reset_num_timesteps=False)
+    model.learn(iterations * per_iteration, callback=[timer, *callbacks], reset_num_timesteps=False)
     elapsed = time.perf_counter() - start
     return iterations * per_iteration / elapsed, timer.collecting / elapsed
 
@@ -112,11 +119,11 @@ def main() -> None:
     parser.add_argument("--physics-threads", type=int, nargs="*", default=[1], help="env physics threads")
     parser.add_argument("--iterations", type=int, default=4)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads at the start")
+    parser.add_argument("--no-callbacks", action="store_true", help="without the preset's callbacks")
     parser.add_argument("--conf-file", default=None, help="hyperparameter file (default: the packaged one)")
     args = parser.parse_args()
-    if args.threads is not None:
-        torch.set_num_threads(args.threads)
+    torch.set_num_threads(args.threads)
     preset = read_preset(ENV_ID, args.conf_file)
     cores = available_cores()
     env_kwargs = dict(preset.get("env_kwargs") or {})
@@ -139,7 +146,9 @@ def main() -> None:
                         raw_before = raw_rate(num_envs, args.seed, cores, env_kwargs)
                         env = make_env(preset, args.vec, num_envs, args.seed, options)
                         used_workers = getattr(env.venv, "workers", "-")
-                        rate, collecting = train_rate(algo, preset, env, net, args.iterations, args.seed)
+                        rate, collecting = train_rate(
+                            algo, preset, env, net, args.iterations, args.seed, not args.no_callbacks
+                        )
                         env.close()
                         raw = float(np.mean([raw_before, raw_rate(num_envs, args.seed, cores, env_kwargs)]))
                         if algo == "ppo":
