@@ -126,6 +126,7 @@ def test_time_out_targets_bootstrap_from_the_final_observation():
     steps, envs = np.nonzero(buffer.bootstrap_values)
     assert buffer.has_time_outs and len(steps) == (n_steps // 7) * n_envs
     assert (np.diff(buffer.bootstrap_atoms[steps, envs], axis=-1) >= 0).all()
+    assert (np.diff(buffer.target_atoms, axis=-1) >= 0).all()  # sorted once, for every epoch's loss
     # get() flattened the targets env-major (row e * n_steps + t): restore the (step, env) layout.
     targets = buffer.target_atoms.reshape(n_envs, n_steps, -1).swapaxes(0, 1)
     expected = buffer.rewards[steps, envs][:, None] + 0.9 * buffer.bootstrap_atoms[steps, envs]

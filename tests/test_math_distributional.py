@@ -299,3 +299,15 @@ def test_rnd_state_saved_before_the_target_statistics_loads_with_unit_variance()
         normalized = old.normalize(inputs)
         expected = (old.predictor(normalized) - old.target(normalized)).pow(2).mean(dim=-1)
     th.testing.assert_close(old.prediction_error(inputs), expected, rtol=1e-5, atol=1e-7)
+
+
+def test_energy_distance_of_presorted_atoms_skips_the_sorts_with_the_same_values_and_gradients():
+    generator = th.Generator().manual_seed(3)
+    x = th.sort(th.randn(6, 64, generator=generator), dim=-1).values.requires_grad_()
+    y = th.sort(th.randn(6, 32, generator=generator) * 2.0 + 0.5, dim=-1).values
+    presorted = energy_distance(x, y, presorted=True)
+    (gradient,) = th.autograd.grad(presorted.sum(), x)
+    reference = pairwise_energy_distance(x, y)
+    (reference_gradient,) = th.autograd.grad(reference.sum(), x)
+    th.testing.assert_close(presorted, reference, atol=1e-5, rtol=1e-5)
+    th.testing.assert_close(gradient, reference_gradient, atol=1e-6, rtol=1e-5)

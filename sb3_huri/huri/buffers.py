@@ -117,6 +117,7 @@ class _RiskAwareRolloutMixin:
         self.rewards = rewards
         if self.n_quantiles > 1:
             assert last_atoms is not None, "a quantile critic needs the atoms of the last state"
+            # Sorted once here, so that every epoch's energy distance skips the sort of its targets.
             self.target_atoms = sr_lambda_targets(
                 rewards,
                 self.atoms,
@@ -129,6 +130,7 @@ class _RiskAwareRolloutMixin:
                 # SB3 seeds numpy's global generator: draw the mixing generator's seed from it.
                 rng=np.random.default_rng(np.random.randint(2**31)),  # noqa: NPY002
             )
+            self.target_atoms.sort(axis=-1)
 
     def get(self, batch_size: int | None = None) -> Generator[HuRiRolloutBufferSamples, None, None]:  # type: ignore[override]
         if not self.generator_ready:

@@ -606,7 +606,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         if not self.distributional:
             return F.mse_loss(data.returns, outputs.flatten())
         atoms = th.sort(outputs, dim=-1).values
-        quantile_loss = energy_distance(atoms, data.target_atoms).mean()
+        quantile_loss = energy_distance(atoms, data.target_atoms, presorted=True).mean()  # targets: sorted
         mean_loss = expectation_loss(atoms, data.target_atoms, data.distortion_weights, self.expectation_loss)
         logs["quantile"].append(quantile_loss.item())
         logs["expectation"].append(mean_loss.item())
