@@ -56,16 +56,23 @@ class RiskAssessment(NamedTuple):
 
 
 class _Risk(NamedTuple):
-    """Everything the risk machinery computes for a batch of states (torch tensors, one row per state)."""
+    """Everything the risk machinery computes for a batch of states, one row per state (torch tensors, or
+    their numpy copies)."""
 
-    atoms: th.Tensor
-    value: th.Tensor
-    risk: th.Tensor
-    weights: th.Tensor
-    iqr: th.Tensor
-    rnd_error: th.Tensor
-    beta_iqr: th.Tensor
-    beta_rnd: th.Tensor
+    atoms: Any
+    """Sorted atoms ``(B, N)``."""
+    value: Any
+    """Distorted value ``V_beta``."""
+    risk: Any
+    """``beta`` (or CVaR's ``alpha``) = ``beta_iqr + beta_rnd`` (clipped to 1 for CVaR)."""
+    weights: Any
+    """Distortion weights ``(B, N)``."""
+    iqr: Any
+    rnd_error: Any
+    beta_iqr: Any
+    """The IQR band's risk level, or the fixed parameter without ``use_iqr``."""
+    beta_rnd: Any
+    """``tanh(rnd_error)`` with ``use_rnd``, else 0."""
 
 
 class HuRiPPO(OnPolicyAlgorithm):
@@ -423,7 +430,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                 critic_inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
             assessed = self._assess(outputs, critic_inputs)
 
-        rollout = _Risk(*(to_numpy(tensor[:n_rollout]) for tensor in assessed))
+        rollout = _Risk(*(_to_numpy(tensor[:n_rollout]) for tensor in assessed))
         shape = (buffer.buffer_size, buffer.n_envs)
         buffer.set_risk(
             rollout.weights.reshape(*shape, -1),
@@ -436,12 +443,12 @@ class HuRiPPO(OnPolicyAlgorithm):
             steps, envs = np.array([t[0] for t in time_outs]), np.array([t[1] for t in time_outs])
             first = n_rollout + n_last
             buffer.set_time_out_bootstrap(
-                steps, envs, to_numpy(assessed.atoms[first:]), to_numpy(assessed.value[first:])
+                steps, envs, _to_numpy(assessed.atoms[first:]), _to_numpy(assessed.value[first:])
             )
         buffer.compute_returns_and_advantage(
             last_values=assessed.value[n_rollout : n_rollout + n_last],
             dones=dones,
-            last_atoms=to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
+            last_atoms=_to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
         )
         if self.distributional:
             self._record_risk(rollout)
@@ -461,11 +468,8 @@ class HuRiPPO(OnPolicyAlgorithm):
                 self.policy.predict_values(obs_tensor),
                 self.policy.critic_features(obs_tensor) if rnd is not None else None,
             )
-        arrays = [
-            to_numpy(tensor) for tensor in (assessed.atoms, assessed.value, assessed.risk, assessed.iqr)
-        ]
-        arrays.append(to_numpy(assessed.rnd_error))
-        return RiskAssessment(*(array if vectorized else array[0] for array in arrays))
+        fields = (assessed.atoms, assessed.value, assessed.risk, assessed.iqr, assessed.rnd_error)
+        return RiskAssessment(*(_to_numpy(t) if vectorized else _to_numpy(t)[0] for t in fields))
 
     def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> _Risk:
         """Sort the atoms, then per state: IQR, RND novelty, risk parameter, distortion weights, ``V_beta``.
@@ -644,8 +648,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
 
 
-def to_numpy(tensor: th.Tensor) -> np.ndarray:
-    return tensor.cpu().numpy()
+def _to_numpy(tensor: th.Tensor) -> np.ndarray:
+    return tensor.detach().cpu().numpy()
 
 
 def _add_batch_axis(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray | dict[str, np.ndarray]:
