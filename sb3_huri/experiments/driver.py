@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from sb3_huri.experiments.backends import Backend, LocalBackend, RayBackend, available_cpus
@@ -124,8 +124,8 @@ class _Progress:
         self.shown: dict[tuple[str, int], tuple[str, int]] = {}
         self.first: dict[tuple[str, int], tuple[int, float]] = {}
 
-    def poll(self, tasks: object) -> None:
-        for task in tasks:  # type: ignore[attr-defined]
+    def poll(self, tasks: Iterable[RunTask]) -> None:
+        for task in tasks:
             key = (task.method, task.seed)
             try:
                 status = read_status(
