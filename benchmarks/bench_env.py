@@ -11,9 +11,9 @@ For each configuration it prints control steps per second (robot-steps/s for a b
 and the ratio env / raw physics. On K cores (`--physics-threads K`, default: every core) it also times raw
 physics with the robots split into K groups stepped in parallel threads (MuJoCo releases the GIL in
 `mj_step`), the env with its physics on K threads (`physics_threads=K`, the task logic on one), and the
-env with its robots split over K worker processes (`workers=K`, task logic and physics in parallel; the
-default of `make_vec_env` on this machine), and gives each of those ratios to raw physics on K threads
-too. With `--rollout`,
+env with its robots split into K slices, K - 1 stepped by worker processes and one by this process
+(`workers=K-1`, task logic and physics in parallel; the default of `make_vec_env` on this machine), and
+gives each of those ratios to raw physics on K threads too. With `--rollout`,
 it also times raw physics through MuJoCo's threaded `mujoco.rollout` (the alternative to the loop; not
 used by the env, see docs/performance.md). With `--stages`, it also splits a batch's step into its
 stages (timers around the batch's methods and around each `mj_step` call), in microseconds per robot-step.
@@ -275,12 +275,13 @@ def main() -> None:
         if cores > 1:
             raw_name = f"raw mj_step loop, {cores} threads"
             measures[raw_name] = lambda a, v=venv, k=cores: physics_rate(v.robots.sim, a, k)
+            workers = min(cores, num) - 1  # with this process stepping a slice too: one slice per core
             variants = {
                 f"ZerithVecEnv.step, {cores} physics threads": dict(workers=0, physics_threads=cores),
-                f"ZerithVecEnv.step, {min(cores, num)} workers": dict(workers=min(cores, num)),
+                f"ZerithVecEnv.step, {workers} workers + this process": dict(workers=workers),
             }
             default = default_workers(num)
-            if default not in (0, min(cores, num)):
+            if default not in (0, workers):
                 variants[f"ZerithVecEnv.step, default ({default} workers)"] = {}
             for name, kwargs in variants.items():
                 other = zerith_gym.make_vec_env(num, seed=0, scenario=args.scenario, **kwargs)

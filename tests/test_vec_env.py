@@ -67,11 +67,11 @@ def _compare_with_single_envs(
     return counts
 
 
-@pytest.mark.parametrize(("physics_threads", "workers"), [(1, 0), (2, 0), (3, 0), (1, 2), (1, 3), (2, 1)])
+@pytest.mark.parametrize(("physics_threads", "workers"), [(1, 0), (2, 0), (3, 0), (1, 1), (1, 2), (2, 1)])
 def test_batched_robots_reproduce_single_envs_through_falls_and_time_outs(physics_threads, workers):
     # Robot 0 holds still and times out after 60 steps; robots 1 and 2 act at random and fall. With 2 or 3
-    # physics threads the robots are stepped in parallel groups, with workers in other processes (each
-    # resetting its own robots), which must not change any transition.
+    # physics threads the robots are stepped in parallel groups, with workers in other processes beside a
+    # slice in this one (each resetting its own robots), which must not change any transition.
     rng = np.random.default_rng(0)
 
     def actions_of(t: int) -> np.ndarray:
@@ -160,8 +160,8 @@ def test_seeding_options_attributes_and_bad_input():
         ZerithVecEnv(2, episode_steps=0)
     with pytest.raises(ValueError, match="physics threads must be a positive integer"):
         ZerithVecEnv(2, physics_threads=0)
-    with pytest.raises(ValueError, match=r"workers must be an integer in \[1, 2\]"):
-        ZerithVecEnv(2, workers=3)
+    with pytest.raises(ValueError, match=r"workers must be an integer in \[1, 1\]"):
+        ZerithVecEnv(2, workers=2)
     with pytest.raises(ValueError, match=r"unknown ZerithVecEnv option.*'speed'.*valid options: scenario"):
         ZerithVecEnv(2, speed=1.0)
 
@@ -220,9 +220,11 @@ def test_default_workers_follow_the_cores_and_the_robots(monkeypatch):
     from zerith_gym import workers
 
     monkeypatch.setattr(workers, "available_cores", lambda: 16)
-    assert [workers.default_workers(n) for n in (1, 8, 15, 16, 32, 100, 1024)] == [0, 0, 0, 2, 4, 12, 16]
+    # one slice per core, the calling process stepping one of them, at least 8 robots a slice
+    assert [workers.default_workers(n) for n in (1, 8, 15, 16, 32, 100, 1024)] == [0, 0, 0, 1, 3, 11, 15]
     monkeypatch.setattr(workers, "available_cores", lambda: 1)
     assert workers.default_workers(1024) == 0
+    assert workers.default_workers(1024, cores=4) == 3
 
 
 def test_worker_failures_and_closing_give_clear_errors():
@@ -230,6 +232,7 @@ def test_worker_failures_and_closing_give_clear_errors():
     venv.seed(0)
     venv.reset()
     venv.step(np.zeros((4, 12)))
+    assert len(venv.robots._processes) == 2  # and a slice in this process
     venv.robots._processes[1].kill()
     venv.robots._processes[1].join()
     with pytest.raises(RuntimeError, match="worker process exited"):

@@ -1,15 +1,17 @@
-"""`WorkerPool`: n robots split over worker processes, each stepping its own `ZerithBatch` of a slice of them.
+"""`WorkerPool`: n robots in contiguous slices, each stepped by its own `ZerithBatch`, in parallel processes.
 
 The task logic (numpy over the batch) holds Python's GIL, so threads cannot share it out; processes can.
-Worker k owns robots [start_k, stop_k) with their physics *and* task state, so everything a control step
-costs runs in parallel, on as many cores as there are workers. The shape is that of EnvPool and SB3's
+Slice k owns robots [start_k, stop_k) with their physics *and* task state, so everything a control step
+costs runs in parallel. The calling process steps the first slice itself while `workers` worker processes
+step the others (as a thread pool's caller takes a share of the work): on c cores, c - 1 workers keep
+every core busy and the caller never sits idle waiting. The shape is that of EnvPool and SB3's
 `SubprocVecEnv`, with the data in shared memory instead of pickled messages:
 
 - one shared block holds the actions and every per-robot output (observations, rewards, episode ends,
-  reward terms, info values) as numpy views, the same in every process; worker k reads and writes only
+  reward terms, info values) as numpy views, the same in every process; a slice reads and writes only
   its own rows;
 - a step is one byte sent to each worker and one byte back; robots whose episode ended are reset inside
-  their worker in the same step (their terminal observations are kept in the block), so a step costs
+  their slice in the same step (their terminal observations are kept in the block), so a step costs
   one round trip whatever happens in it;
 - episode statistics are summed by the caller from the shared rewards and reward terms.
 
@@ -48,7 +50,7 @@ from zerith_gym.scenarios import Scenario
 from zerith_gym.task import StepOutput
 
 MIN_ROBOTS_PER_WORKER = 8
-"""Below this many robots per worker the hand-over costs more than the parallel work gains."""
+"""Below this many robots per slice the hand-over costs more than the parallel work gains."""
 
 _STEP, _OK = b"s", b"k"
 
@@ -61,11 +63,12 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def default_workers(num_robots: int) -> int:
-    """Worker processes for `num_robots` robots on this machine: one per core, at least
-    `MIN_ROBOTS_PER_WORKER` robots each; 0 (step in the calling process) when that gives fewer than two."""
-    workers = min(available_cores(), num_robots // MIN_ROBOTS_PER_WORKER)
-    return workers if workers >= 2 else 0
+def default_workers(num_robots: int, cores: int | None = None) -> int:
+    """Worker processes for `num_robots` robots on `cores` cores (default: this machine's): one slice of
+    robots per core (the caller steps one of them), at least `MIN_ROBOTS_PER_WORKER` robots per slice; 0
+    (every robot in the calling process) where that gives a single slice."""
+    cores = available_cores() if cores is None else cores
+    return max(min(cores, num_robots // MIN_ROBOTS_PER_WORKER) - 1, 0)
 
 
 def _fields(n: int) -> dict[str, tuple[type, tuple[int, ...]]]:
@@ -127,6 +130,29 @@ def _write_step(shared: dict[str, np.ndarray], rows: slice, step: BatchStep) -> 
     shared["next_command"][rows] = step.next_command
 
 
+def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, int], message: bytes) -> bool:
+    """Carry out one message (step, reset, scenario, close) on the slice of robots [rows); False: closed."""
+    start, stop = rows
+    mine = slice(start, stop)
+    if message == _STEP:
+        _write_step(shared, mine, batch.step(shared["actions"][mine]))
+        return True
+    command, payload = pickle.loads(message)
+    if command == "close":
+        batch.close()
+        return False
+    if command == "scenario":
+        batch.set_scenario(payload)
+        return True
+    ids, seeds, commands = payload  # reset: robot indices of this slice, counted from 0
+    batch.seed(seeds)
+    policy, critic = batch.reset(ids, commands)
+    shared["policy_obs"][start + ids] = policy
+    shared["critic_obs"][start + ids] = critic
+    shared["next_command"][mine] = batch.commands
+    return True
+
+
 def _serve(
     conn: Connection,
     block: Any,
@@ -135,55 +161,39 @@ def _serve(
     options: ZerithOptions,
     physics_threads: int,
 ) -> None:
-    """A worker's life: build its batch of robots [rows), then answer step / reset / close messages."""
+    """A worker's life: build its batch of robots [rows), then answer messages until `close`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle: it closes the pool
-    start, stop = rows
-    mine = slice(start, stop)
     try:
         shared = _views(block, num_robots)
-        batch = ZerithBatch(stop - start, options, physics_threads)
+        batch = ZerithBatch(rows[1] - rows[0], options, physics_threads)
     except BaseException:
         conn.send_bytes(pickle.dumps(traceback.format_exc()))
         return
     conn.send_bytes(_OK)
-    while True:
+    going = True
+    while going:
         try:
             message = conn.recv_bytes()
         except (EOFError, KeyboardInterrupt):
             break
         try:
-            if message == _STEP:
-                _write_step(shared, mine, batch.step(shared["actions"][mine]))
-            else:
-                command, payload = pickle.loads(message)
-                if command == "close":
-                    batch.close()
-                    conn.send_bytes(_OK)
-                    break
-                if command == "scenario":
-                    batch.set_scenario(payload)
-                    conn.send_bytes(_OK)
-                    continue
-                ids, seeds, commands = payload  # reset: robot indices of this worker, counted from 0
-                batch.seed(seeds)
-                policy, critic = batch.reset(ids, commands)
-                shared["policy_obs"][start + ids] = policy
-                shared["critic_obs"][start + ids] = critic
-                shared["next_command"][mine] = batch.commands
+            going = _handle(batch, shared, rows, message)
             conn.send_bytes(_OK)
         except BaseException:
             conn.send_bytes(pickle.dumps(traceback.format_exc()))
 
 
 class WorkerPool:
-    """`num_robots` robots in `workers` processes (contiguous slices of robots); `ZerithBatch`'s interface."""
+    """`num_robots` robots in `workers + 1` contiguous slices: the first stepped by the calling process, the
+    others by `workers` worker processes; `ZerithBatch`'s interface."""
 
     def __init__(
         self, num_robots: int, options: ZerithOptions, workers: int, physics_threads: int = 1
     ) -> None:
-        if not isinstance(workers, int | np.integer) or not 1 <= workers <= num_robots:
+        if not isinstance(workers, int | np.integer) or not 1 <= workers < num_robots:
             raise ValueError(
-                f"workers must be an integer in [1, {num_robots}] (one robot each), got {workers!r}"
+                f"workers must be an integer in [1, {num_robots - 1}] (with the calling process, at most one "
+                f"slice per robot), got {workers!r}"
             )
         context = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         self.num_robots = num_robots
@@ -191,11 +201,11 @@ class WorkerPool:
         self._seeds: dict[int, np.random.Generator] = {}
         self._block = context.RawArray(ctypes.c_byte, _block_size(num_robots))
         self._shared = _views(self._block, num_robots)
-        bounds = np.linspace(0, num_robots, workers + 1).round().astype(int).tolist()
-        self._rows = list(itertools.pairwise(bounds))
+        bounds = np.linspace(0, num_robots, workers + 2).round().astype(int).tolist()
+        self._rows = list(itertools.pairwise(bounds))  # slice 0: this process; slice k: worker k - 1
         self._conns: list[Connection] = []
         self._processes: list[mp.process.BaseProcess] = []
-        for rows in self._rows:
+        for rows in self._rows[1:]:
             parent, child = context.Pipe()
             process = context.Process(
                 target=_serve,
@@ -208,41 +218,38 @@ class WorkerPool:
             self._conns.append(parent)
             self._processes.append(process)
         self._finalizer = weakref.finalize(self, _shut_down, self._conns, self._processes)
-        self._collect("starting")
+        self._collect("starting", self._conns)
+        rows = self._rows[0]
+        self._local = ZerithBatch(rows[1] - rows[0], options, physics_threads)
 
     # ---------------------------------------------------------------------------------- ZerithBatch API
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
-        """Give robots their random generators (robot index -> generator); sent with the next reset."""
+        """Give robots their random generators (robot index -> generator); used at their next reset."""
         self._seeds.update(seeds)
 
     def reset(
         self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Start new episodes of robots `ids` (each in its worker); returns their observations."""
-        self._check_open()
+        """Start new episodes of robots `ids` (each in its slice); returns their observations."""
         ids = np.asarray(ids)
         seeds, self._seeds = self._seeds, {}
         commands = dict(commands or {})
-        busy = []
-        for conn, (start, stop) in zip(self._conns, self._rows, strict=True):
+        messages = {}
+        for k, (start, stop) in enumerate(self._rows):
             local = ids[(ids >= start) & (ids < stop)] - start
             local_seeds = {i - start: rng for i, rng in seeds.items() if start <= i < stop}
-            if len(local) == 0 and not local_seeds:
-                continue
-            local_commands = {i - start: c for i, c in commands.items() if start <= i < stop}
-            self._send(conn, pickle.dumps(("reset", (local, local_seeds, local_commands))), "resetting")
-            busy.append(conn)
-        self._collect("resetting", busy)
+            if len(local) or local_seeds:
+                local_commands = {i - start: c for i, c in commands.items() if start <= i < stop}
+                messages[k] = pickle.dumps(("reset", (local, local_seeds, local_commands)))
+        self._run(messages, "resetting")
         return self._shared["policy_obs"][ids].copy(), self._shared["critic_obs"][ids].copy()
 
     def set_scenario(self, scenario: Scenario) -> None:
-        """Every worker follows `scenario` from now on (see `ZerithBatch.set_scenario`)."""
-        self._check_open()
+        """Every slice follows `scenario` from now on (see `ZerithBatch.set_scenario`)."""
         check_scenario_change(self.scenario, scenario)
+        message = pickle.dumps(("scenario", scenario))
+        self._run(dict.fromkeys(range(len(self._rows)), message), "changing the scenario")
         self.scenario = scenario
-        for conn in self._conns:
-            self._send(conn, pickle.dumps(("scenario", scenario)), "changing the scenario")
-        self._collect("changing the scenario")
 
     @property
     def commands(self) -> np.ndarray:
@@ -251,12 +258,9 @@ class WorkerPool:
 
     def step(self, actions: np.ndarray) -> BatchStep:
         """One control step of every robot (checked actions (n, 12)); robots whose episode ended restart."""
-        self._check_open()
         shared = self._shared
         shared["actions"][:] = actions
-        for conn in self._conns:
-            self._send(conn, _STEP, "stepping")
-        self._collect("stepping")
+        self._run(dict.fromkeys(range(len(self._rows)), _STEP), "stepping")
         out = StepOutput(
             policy_obs=shared["step_policy_obs"].copy(),
             critic_obs=shared["step_critic_obs"].copy(),
@@ -280,26 +284,38 @@ class WorkerPool:
 
     def close(self) -> None:
         """Stop the worker processes (waiting for them to finish their current message)."""
+        if self._finalizer.alive:
+            self._local.close()
         self._finalizer()
 
     # ------------------------------------------------------------------------------------------------
-    def _check_open(self) -> None:
+    def _run(self, messages: dict[int, bytes], doing: str) -> None:
+        """Send slice k its message, carry out slice 0's here meanwhile, then wait for every worker."""
         if not self._finalizer.alive:
             raise RuntimeError("the Zerith worker processes were closed (env.close()); make a new env")
-
-    def _send(self, conn: Connection, message: bytes, doing: str) -> None:
+        remote = []
+        for k, message in messages.items():
+            if k == 0:
+                continue
+            conn = self._conns[k - 1]
+            try:
+                conn.send_bytes(message)
+            except OSError:
+                self.close()
+                raise RuntimeError(
+                    f"a Zerith worker process exited (killed, or out of memory?) before {doing}"
+                ) from None
+            remote.append(conn)
         try:
-            conn.send_bytes(message)
-        except OSError:
-            self.close()
-            raise RuntimeError(
-                f"a Zerith worker process exited (killed, or out of memory?) before {doing}"
-            ) from None
+            if 0 in messages:
+                _handle(self._local, self._shared, self._rows[0], messages[0])
+        finally:  # the workers' answers are read even if this slice failed, to keep the pipes in step
+            self._collect(doing, remote)
 
-    def _collect(self, doing: str, conns: list[Connection] | None = None) -> None:
-        """Wait for every worker's answer; RuntimeError with the worker's traceback if one failed."""
+    def _collect(self, doing: str, conns: list[Connection]) -> None:
+        """Wait for the answers of `conns`; RuntimeError with the worker's traceback if one failed."""
         errors = []
-        for conn in self._conns if conns is None else conns:
+        for conn in conns:
             try:
                 answer = conn.recv_bytes()
             except (EOFError, OSError):
