@@ -5,7 +5,7 @@
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run (model + normalizer)
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
-`hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: worker processes, one per core),
+`hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: a slice of robots per core),
 with the preset's `callback:` entries read as RL Zoo reads them: the reward-term logs
 (`zerith_gym.callbacks.RewardTermsLogger`) and the randomization curriculum
 (`zerith_gym.callbacks.RandomizationCurriculum`, which grows the randomization from none to the full
@@ -62,7 +62,7 @@ def main() -> None:
         "--workers",
         type=int,
         default=None,
-        help="processes stepping the robots (same results for any number; default: one per core, 0: none)",
+        help="worker processes stepping robots (same results for any number; default: cores - 1; 0: none)",
     )
     parser.add_argument(
         "--physics-threads", type=int, default=1, help="threads stepping the physics of each process's robots"

@@ -1,8 +1,8 @@
 """`ZerithVecEnv`: n Zerith-1 robots stepped together, as a Stable-Baselines3 `VecEnv`.
 
 Observations, rewards and randomization are computed with numpy over batches of robots (`ZerithTask`),
-the physics of each robot runs in C (`Simulator`); the robots are split over worker processes, one per
-core by default (`zerith_gym.workers`). Robot i seeded with `seed + i` follows exactly the trajectory of
+the physics of each robot runs in C (`Simulator`); the robots are split into slices, one per core by
+default, stepped in parallel by this process and worker processes (`zerith_gym.workers`). Robot i seeded with `seed + i` follows exactly the trajectory of
 a single `Zerith1Env` seeded with `seed + i`, whatever the number of workers (tested). Use it wherever
 SB3 takes a VecEnv:
 
@@ -51,10 +51,10 @@ from zerith_gym.workers import WorkerPool, default_workers
 class ZerithVecEnv(VecEnv):
     """`num_envs` Zerith1-v0 robots stepped together; `options` are those of `ZerithOptions`.
 
-    `workers`: processes stepping the robots, each a contiguous slice of them with its own task logic and
-    physics (`zerith_gym.workers`); 0 steps every robot in this process. The default (None) takes one
-    worker per CPU core with at least 8 robots each, or 0 where that makes fewer than two
-    (`default_workers`). `physics_threads`: threads stepping the physics of the robots of one process
+    `workers`: worker processes stepping slices of the robots (each with its own task logic and physics,
+    `zerith_gym.workers`) while this process steps the first slice; 0 steps every robot in this process.
+    The default (None) makes one slice per CPU core with at least 8 robots each, so `cores - 1` workers,
+    or 0 where that gives one slice (`default_workers`). `physics_threads`: threads stepping the physics of the robots of one process
     (MuJoCo releases the GIL in `mj_step`; the task logic stays on one thread).
     The transitions are the same for any number of workers and threads (tested).
     Rendering is not supported (use the single env for videos).

@@ -96,7 +96,7 @@ ZERITH_ENTRY_POINT = "zerith_gym.envs.zerith1:Zerith1Env"
 
 
 def use_batched_zerith_env() -> None:
-    """Let ``rl_zoo3 train`` step Zerith robots with ``zerith_gym.make_vec_env`` (worker processes, one per
+    """Let ``rl_zoo3 train`` step Zerith robots with ``zerith_gym.make_vec_env`` (a slice of robots per
     core) instead of RL Zoo's ``DummyVecEnv`` of one env per robot: several times faster, same transitions.
 
     It applies to envs registered with the ``Zerith1Env`` entry point, with RL Zoo's default ``--vec-env
