@@ -2,9 +2,9 @@
 
 Observations, rewards and randomization are computed with numpy over batches of robots (`ZerithTask`),
 the physics of each robot runs in C (`Simulator`); the robots are split into slices, one per core by
-default, stepped in parallel by this process and worker processes (`zerith_gym.workers`). Robot i seeded with `seed + i` follows exactly the trajectory of
-a single `Zerith1Env` seeded with `seed + i`, whatever the number of workers (tested). Use it wherever
-SB3 takes a VecEnv:
+default, stepped in parallel by this process and worker processes (`zerith_gym.workers`). Robot i seeded
+with `seed + i` follows exactly the trajectory of a single `Zerith1Env` seeded with `seed + i`, whatever
+the number of workers (tested). Use it wherever SB3 takes a VecEnv:
 
     from stable_baselines3 import PPO
     import zerith_gym
@@ -54,8 +54,8 @@ class ZerithVecEnv(VecEnv):
     `workers`: worker processes stepping slices of the robots (each with its own task logic and physics,
     `zerith_gym.workers`) while this process steps the first slice; 0 steps every robot in this process.
     The default (None) makes one slice per CPU core with at least 8 robots each, so `cores - 1` workers,
-    or 0 where that gives one slice (`default_workers`). `physics_threads`: threads stepping the physics of the robots of one process
-    (MuJoCo releases the GIL in `mj_step`; the task logic stays on one thread).
+    or 0 where that gives one slice (`default_workers`). `physics_threads`: threads stepping the physics
+    of the robots of one process (MuJoCo releases the GIL in `mj_step`; the task logic stays on one).
     The transitions are the same for any number of workers and threads (tested).
     Rendering is not supported (use the single env for videos).
     """
