@@ -63,13 +63,29 @@ def _die_with_parent() -> None:
                 os._exit(1)
 
 
+ONE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""Math libraries' thread counts set to 1 for the pool's processes (unless the user set them): numpy's
+OpenBLAS otherwise starts a thread per core in every run, which spins beside the run's own work (two runs on
+two cores trained at half their speed)."""
+
+
 class LocalBackend:
-    """A pool of ``parallel`` processes on this machine."""
+    """A pool of ``parallel`` processes on this machine (each process one thread of math libraries)."""
 
     def __init__(self, parallel: int) -> None:
+        self._environment = {name: os.environ.get(name) for name in ONE_THREAD}
+        for name in ONE_THREAD:  # the spawned processes inherit this environment
+            os.environ.setdefault(name, "1")
         self.pool = cf.ProcessPoolExecutor(
             max_workers=parallel, mp_context=mp.get_context("spawn"), initializer=_die_with_parent
         )
+
+    def _restore_environment(self) -> None:
+        for name, value in self._environment.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
     def submit(self, task: RunTask) -> cf.Future:
         return self.pool.submit(execute_run, task)
@@ -89,9 +105,11 @@ class LocalBackend:
             with contextlib.suppress(OSError, ValueError):
                 os.kill(process.pid, signal.SIGINT)
         self.pool.shutdown(wait=True, cancel_futures=True)
+        self._restore_environment()
 
     def close(self) -> None:
         self.pool.shutdown(wait=True)
+        self._restore_environment()
 
 
 class RayBackend:
