@@ -48,6 +48,8 @@ def atomic_write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        if hasattr(os, "fchmod"):  # mkstemp gives 0600: other users of a shared folder could not read it
+            os.fchmod(handle, 0o644)
         with os.fdopen(handle, "w") as f:
             f.write(text)
             f.flush()
