@@ -78,10 +78,12 @@ def _trim_curve(folder: Path, steps: int) -> None:
 
 
 def env_workers(cpus: int, n_envs: int) -> int:
-    """Processes stepping a run's robots when it has ``cpus`` cores: one per core with at least 8 robots
-    each (``zerith_gym.workers``), or 0 (robots stepped in the run's own process) where that gives one."""
-    workers = min(cpus, n_envs // 8)
-    return workers if workers >= 2 else 0
+    """Worker processes stepping a run's robots when the run has ``cpus`` cores: the env's own choice for
+    that many cores (``zerith_gym.workers.default_workers``: a slice of robots per core, the run's process
+    stepping one of them; 0 with one core)."""
+    from zerith_gym.workers import default_workers
+
+    return default_workers(n_envs, cores=cpus)
 
 
 def train_run(
