@@ -18,7 +18,7 @@ from gymnasium import spaces
 from zerith_gym import robot
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import TermValues, resolve_reward_weights
-from zerith_gym.scenarios import Scenario, get_scenario
+from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask
 from zerith_gym.terrain import Terrain
@@ -60,8 +60,7 @@ class ZerithOptions:
     def __post_init__(self) -> None:
         if self.obs_mode not in OBS_MODES:
             raise ValueError(f"unknown obs_mode {self.obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
-        if not isinstance(self.scenario, Scenario):
-            get_scenario(self.scenario)
+        resolve_scenario(self.scenario)
         if self.command is not None:
             check_command(self.command, "command")
         resolve_reward_weights(self.reward_weights)
@@ -79,7 +78,7 @@ class ZerithOptions:
 
     @property
     def resolved_scenario(self) -> Scenario:
-        return self.scenario if isinstance(self.scenario, Scenario) else get_scenario(self.scenario)
+        return resolve_scenario(self.scenario)
 
     def fixed_command(self, scenario: Scenario) -> tuple[float, float, float] | None:
         """The fixed command of every episode in `scenario`, if any: the option's, else the scenario's."""

@@ -31,7 +31,7 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from zerith_gym.rewards import REWARD_NAMES
-from zerith_gym.scenarios import Scenario, get_scenario, scaled_scenario
+from zerith_gym.scenarios import Scenario, resolve_scenario, scaled_scenario
 from zerith_gym.workers import available_cores
 
 
@@ -112,7 +112,7 @@ class RandomizationCurriculum(BaseCallback):
         if max_fall_rate is not None and not 0.0 <= max_fall_rate <= 1.0:
             raise ValueError(f"max_fall_rate must be in [0, 1], got {max_fall_rate!r}")
         self.steps, self.stages, self.max_fall_rate = steps, stages, max_fall_rate
-        self.base = get_scenario(scenario) if isinstance(scenario, str) else scenario
+        self.base = None if scenario is None else resolve_scenario(scenario)
         self.stage: int | None = None
         self._episodes = self._falls = 0
 

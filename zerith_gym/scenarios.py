@@ -75,6 +75,11 @@ def get_scenario(name: str) -> Scenario:
     return SCENARIOS[name]
 
 
+def resolve_scenario(scenario: str | Scenario) -> Scenario:
+    """`scenario` itself, or the named scenario it names (ValueError listing the names otherwise)."""
+    return scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+
+
 def scaled_scenario(scenario: Scenario, scale: float) -> Scenario:
     """`scenario` with its randomization ranges, pushes and external forces shrunk towards none by `scale`.
 

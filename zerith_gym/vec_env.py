@@ -44,7 +44,7 @@ from zerith_gym.batch import (
     step_infos,
 )
 from zerith_gym.rewards import REWARD_NAMES
-from zerith_gym.scenarios import Scenario, get_scenario
+from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.workers import WorkerPool, default_workers
 
 
@@ -147,7 +147,7 @@ class ZerithVecEnv(VecEnv):
         Its randomization ranges apply from each robot's next reset; forces, pushes, observation noise
         and command draws from the next step. Terrain and force target cannot change (ValueError).
         """
-        scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+        scenario = resolve_scenario(scenario)
         self.robots.set_scenario(scenario)
         self.scenario = scenario
 

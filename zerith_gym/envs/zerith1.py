@@ -19,7 +19,7 @@ from zerith_gym.batch import (
     step_infos,
 )
 from zerith_gym.rewards import REWARD_NAMES
-from zerith_gym.scenarios import SCENARIOS, Scenario, get_scenario
+from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
 
 _ROBOT = np.array([0])
 
@@ -126,7 +126,7 @@ class Zerith1Env(gym.Env):
 
     def set_scenario(self, scenario: str | Scenario) -> None:
         """Follow another scenario from now on (see `ZerithVecEnv.set_scenario`)."""
-        scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+        scenario = resolve_scenario(scenario)
         self.robots.set_scenario(scenario)
         self.scenario = scenario
 
