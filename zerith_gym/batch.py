@@ -20,7 +20,7 @@ from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import TermValues, resolve_reward_weights
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.simulator import Simulator
-from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask
+from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask, task_constants
 from zerith_gym.terrain import Terrain
 
 OBS_MODES = ("dict", "policy")
@@ -193,12 +193,14 @@ class ZerithBatch:
         self.task = ZerithTask(
             num_robots,
             self.scenario,
-            self.terrain,
             robot.Sensors.layout(model),
-            np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
-            resolve_reward_weights(options.reward_weights),
+            task_constants(
+                self.terrain,
+                np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
+                resolve_reward_weights(options.reward_weights),
+                int(options.episode_steps),
+            ),
             options.fixed_command(self.scenario),
-            int(options.episode_steps),
         )
 
     def set_scenario(self, scenario: Scenario) -> None:

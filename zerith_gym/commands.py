@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from zerith_gym.arrays import namespace
+
 
 @dataclass(frozen=True)
 class CommandRanges:
@@ -23,10 +25,22 @@ COMMAND_DRAWS = 4
 """Uniform numbers in [0, 1) consumed by one command draw."""
 
 
-def sample_commands(uniforms: np.ndarray, ranges: CommandRanges) -> np.ndarray:
-    """Commands (n, 3) from `uniforms` (n, 4) in [0, 1): standing flag, vx, vy, yaw rate."""
+def command_bounds(ranges: CommandRanges) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds (3,) each of (vx, vy, yaw rate)."""
     low = np.array([ranges.vx[0], ranges.vy[0], ranges.yaw_rate[0]])
     high = np.array([ranges.vx[1], ranges.vy[1], ranges.yaw_rate[1]])
+    return low, high
+
+
+def commands_from_uniforms(
+    uniforms: np.ndarray, low: np.ndarray, high: np.ndarray, standing_probability: float | np.ndarray
+) -> np.ndarray:
+    """Commands (n, 3) from `uniforms` (n, 4) in [0, 1): standing flag, vx, vy, yaw rate (numpy or JAX)."""
+    xp = namespace(uniforms)
     commands = low + (high - low) * uniforms[:, 1:4]
-    commands[uniforms[:, 0] < ranges.standing_probability] = 0.0
-    return commands
+    return xp.where(uniforms[:, 0:1] < standing_probability, 0.0, commands)
+
+
+def sample_commands(uniforms: np.ndarray, ranges: CommandRanges) -> np.ndarray:
+    """Commands (n, 3) from `uniforms` (n, 4) in [0, 1) for `ranges`."""
+    return commands_from_uniforms(uniforms, *command_bounds(ranges), ranges.standing_probability)

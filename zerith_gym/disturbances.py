@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from zerith_gym import robot
+from zerith_gym.arrays import namespace
 
 FORCE_TARGETS = {
     "centroid": (robot.ROOT_BODY,),
@@ -51,11 +52,12 @@ class ForceSchedule:
 NO_FORCE = ForceSchedule()
 
 
-def horizontal_vectors(uniforms: np.ndarray, magnitude: tuple[float, float]) -> np.ndarray:
-    """Vectors (n, 3) with uniform magnitude in `magnitude` and uniform horizontal direction."""
+def horizontal_vectors(uniforms: np.ndarray, magnitude: tuple[float, float] | np.ndarray) -> np.ndarray:
+    """Vectors (n, 3) of uniform magnitude in `magnitude` and uniform horizontal direction (numpy or JAX)."""
+    xp = namespace(uniforms)
     norm = magnitude[0] + (magnitude[1] - magnitude[0]) * uniforms[:, 0]
     angle = 2.0 * np.pi * uniforms[:, 1]
-    return np.stack([norm * np.cos(angle), norm * np.sin(angle), np.zeros_like(norm)], axis=1)
+    return xp.stack([norm * xp.cos(angle), norm * xp.sin(angle), xp.zeros_like(norm)], axis=1)
 
 
 def schedule_table(schedule: ForceSchedule, num_steps: int) -> tuple[np.ndarray, np.ndarray]:
@@ -64,15 +66,6 @@ def schedule_table(schedule: ForceSchedule, num_steps: int) -> tuple[np.ndarray,
     in_period = since_start % schedule.period_steps
     started = (since_start >= 0) & schedule.active
     return started & (in_period == 0), started & (in_period < schedule.duration_steps)
-
-
-def update_forces(
-    draw: np.ndarray, on: np.ndarray, uniforms: np.ndarray, force: np.ndarray, magnitude: tuple[float, float]
-) -> np.ndarray:
-    """The force (n, 3) acting this step: redrawn where `draw` (n,), zero where not `on` (n,)."""
-    if draw.any():
-        force = np.where(draw[:, None], horizontal_vectors(uniforms, magnitude), force)
-    return force * on[:, None]
 
 
 def push_due(num_steps: int, interval_steps: int, magnitude: tuple[float, float]) -> np.ndarray:

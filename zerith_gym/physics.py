@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from zerith_gym import robot
+from zerith_gym.arrays import namespace
 from zerith_gym.randomization import NUM_LINKS, DomainParams
 from zerith_gym.terrain import Terrain
 
@@ -48,6 +49,7 @@ class NominalModel:
     friction_geoms: np.ndarray
     foot_geoms: np.ndarray
     foot_size: np.ndarray  # half sizes of the foot boxes (feet, 3)
+    scale_column: np.ndarray  # per body: 0 (unscaled), 1 (root), 2 + k (link k) of the mass factors
 
     @staticmethod
     def capture(model: mujoco.MjModel, terrain: Terrain) -> NominalModel:
@@ -57,6 +59,9 @@ class NominalModel:
             raise RuntimeError(f"expected {NUM_LINKS} non-root robot bodies, found {len(links)}")
         feet = np.array([model.geom(name).id for name in robot.FOOT_GEOMS])
         ground = np.array([model.geom(name).id for name in terrain.ground_geoms])
+        scale_column = np.zeros(model.nbody, dtype=int)
+        scale_column[root] = 1
+        scale_column[links] = 2 + np.arange(len(links))
         return NominalModel(
             body_mass=model.body_mass.copy(),
             body_inertia=model.body_inertia.copy(),
@@ -72,42 +77,67 @@ class NominalModel:
             friction_geoms=np.concatenate([feet, ground]),
             foot_geoms=feet,
             foot_size=model.geom_size[feet].copy(),
+            scale_column=scale_column,
         )
 
 
-def apply_domain(models: list[mujoco.MjModel], nominal: NominalModel, params: DomainParams) -> None:
-    """Write robot k's domain parameters (row k of `params`) into `models[k]`, from the nominal values.
+RANDOMIZED_FIELDS = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "geom_friction",
+    "actuator_gainprm",
+    "actuator_biasprm",
+    "actuator_forcerange",
+)
+"""The model fields that domain randomization sets per robot."""
 
-    The randomized fields of all robots are computed together, then copied into each model.
+
+def domain_model_fields(nominal: NominalModel, params: DomainParams) -> dict[str, np.ndarray]:
+    """Each field of `RANDOMIZED_FIELDS` for n robots (leading axis n) with domain parameters `params`.
+
+    Numpy or JAX arrays: the CPU backend copies the rows into each robot's `MjModel`, the MJX backend
+    keeps them as the batched fields of its model.
     """
-    n, root, links = len(models), nominal.root, nominal.links
-    mass = np.repeat(nominal.body_mass[None], n, axis=0)
-    inertia = np.repeat(nominal.body_inertia[None], n, axis=0)
-    ipos = np.repeat(nominal.body_ipos[None], n, axis=0)
-    root_scale = 1.0 + params.added_mass[:, 0] / nominal.body_mass[root]
-    mass[:, root] *= root_scale
-    inertia[:, root] *= root_scale[:, None]
-    ipos[:, root] += params.com_offset
-    mass[:, links] *= params.link_mass_scale
-    inertia[:, links] *= params.link_mass_scale[:, :, None]
-    friction = np.repeat(nominal.geom_friction[None], n, axis=0)
-    friction[:, nominal.friction_geoms, 0] = params.friction
+    xp = namespace(params.added_mass)
+    root_scale = 1.0 + params.added_mass / nominal.body_mass[nominal.root]  # (n, 1)
+    # A factor per body: the load's on the root, each link's own on the links, 1 elsewhere.
+    ones = xp.ones_like(root_scale)
+    mass_scale = xp.concatenate([ones, root_scale, params.link_mass_scale], axis=1)[:, nominal.scale_column]
+    is_root = np.arange(len(nominal.body_mass)) == nominal.root
+    com_shift = xp.where(is_root[:, None], params.com_offset[:, None, :], 0.0)
+    is_ground_or_foot = np.isin(np.arange(len(nominal.geom_friction)), nominal.friction_geoms)
+    sliding = xp.where(is_ground_or_foot, params.friction, nominal.geom_friction[:, 0])
     strength = params.motor_strength
     kp = nominal.gain * strength * params.kp_scale
-    gainprm = np.repeat(nominal.gainprm[None], n, axis=0)
-    gainprm[:, :, 0] = kp
-    biasprm = np.repeat(nominal.biasprm[None], n, axis=0)
-    biasprm[:, :, 1] = -kp
-    biasprm[:, :, 2] = -nominal.damping * strength * params.kd_scale
-    fields = {
-        "body_mass": mass,
-        "body_inertia": inertia,
-        "body_ipos": ipos,
-        "geom_friction": friction,
+    kd = nominal.damping * strength * params.kd_scale
+    rest = (*kp.shape, 9)
+    gainprm = xp.concatenate([kp[..., None], xp.broadcast_to(nominal.gainprm[:, 1:], rest)], axis=-1)
+    biasprm = xp.concatenate(
+        [
+            xp.broadcast_to(nominal.biasprm[:, :1], (*kp.shape, 1)),
+            -kp[..., None],
+            -kd[..., None],
+            xp.broadcast_to(nominal.biasprm[:, 3:], (*kp.shape, 7)),
+        ],
+        axis=-1,
+    )
+    return {
+        "body_mass": nominal.body_mass * mass_scale,
+        "body_inertia": nominal.body_inertia * mass_scale[..., None],
+        "body_ipos": nominal.body_ipos + com_shift,
+        "geom_friction": xp.concatenate(
+            [sliding[..., None], xp.broadcast_to(nominal.geom_friction[:, 1:], (*sliding.shape, 2))], axis=-1
+        ),
         "actuator_gainprm": gainprm,
         "actuator_biasprm": biasprm,
         "actuator_forcerange": nominal.forcerange * strength[:, :, None],
     }
+
+
+def apply_domain(models: list[mujoco.MjModel], nominal: NominalModel, params: DomainParams) -> None:
+    """Write robot k's domain parameters (row k of `params`) into `models[k]`, from the nominal values."""
+    fields = domain_model_fields(nominal, params)
     for k, model in enumerate(models):
         for name, values in fields.items():
             getattr(model, name)[:] = values[k]
@@ -115,6 +145,21 @@ def apply_domain(models: list[mujoco.MjModel], nominal: NominalModel, params: Do
 
 _SOLE_CORNERS = np.array([[sx, sy, -1.0] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)])
 """Bottom corners of a box geom, in units of its half sizes."""
+
+
+def lowest_sole_clearance(
+    foot_xpos: np.ndarray, foot_xmat: np.ndarray, foot_size: np.ndarray, terrain: Terrain
+) -> np.ndarray:
+    """Height (n,) of each robot's lowest foot-sole corner above the ground under it.
+
+    `foot_xpos` (n, feet, 3) and `foot_xmat` (n, feet, 9) are the foot geoms' world poses (numpy or JAX).
+    """
+    xp = namespace(foot_xpos)
+    n, feet = foot_xpos.shape[:2]
+    rotation = foot_xmat.reshape(n, feet, 3, 3)
+    corners = foot_xpos[:, :, None] + (_SOLE_CORNERS * foot_size[:, None]) @ rotation.swapaxes(-1, -2)
+    clearance = corners[..., 2] - terrain.height_at(corners[..., :2])  # (n, feet, corners)
+    return xp.min(clearance.reshape(n, -1), axis=1)
 
 
 def reset_states(
@@ -131,11 +176,12 @@ def reset_states(
         data.qpos[:] = q
         data.ctrl[:] = robot.DEFAULT_JOINT_POS
         mujoco.mj_kinematics(model, data)
-    centre = np.array([data.geom_xpos[feet] for data in datas])  # (n, feet, 3)
-    rotation = np.array([data.geom_xmat[feet] for data in datas]).reshape(len(datas), len(feet), 3, 3)
-    corners = centre[:, :, None] + (_SOLE_CORNERS * nominal.foot_size[:, None]) @ rotation.swapaxes(-1, -2)
-    clearance = corners[..., 2] - terrain.height_at(corners[..., :2])  # (n, feet, corners)
-    lowest = np.minimum.reduce(clearance.reshape(len(datas), -1), axis=1)
+    lowest = lowest_sole_clearance(
+        np.array([data.geom_xpos[feet] for data in datas]),
+        np.array([data.geom_xmat[feet] for data in datas]),
+        nominal.foot_size,
+        terrain,
+    )
     for model, data, q, low in zip(models, datas, qpos, lowest.tolist(), strict=True):
         data.qpos[2] = q[2] - low + GROUND_CLEARANCE
         mujoco.mj_forward(model, data)

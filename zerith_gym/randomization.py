@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from zerith_gym import robot
+from zerith_gym.arrays import namespace
 
 Range = tuple[float, float]
 NUM_LINKS = 16
@@ -70,7 +71,7 @@ TEST_COM: Range = (-0.07, 0.1)
 
 @dataclass
 class DomainParams:
-    """Sampled physical parameters of n robots (leading axis n)."""
+    """Sampled physical parameters of n robots (leading axis n; numpy or JAX arrays)."""
 
     friction: np.ndarray  # (n, 1)
     added_mass: np.ndarray  # (n, 1)
@@ -127,6 +128,7 @@ def delay_lags(action_delay: np.ndarray, physics_dt: float, decimation: int) -> 
     With a delay of d sub-steps, sub-step j of a control step applies the action of
     -floor((j - d) / decimation) control steps ago (0 = the current one).
     """
-    delay_steps = np.rint(action_delay[:, 0] / physics_dt).astype(int)
+    xp = namespace(action_delay)
+    delay_steps = xp.rint(action_delay[:, 0] / physics_dt).astype(int)
     substeps = np.arange(decimation)
-    return -np.floor_divide(substeps[None, :] - delay_steps[:, None], decimation)
+    return -xp.floor_divide(substeps[None, :] - delay_steps[:, None], decimation)

@@ -7,18 +7,23 @@ of n robots and returns (n,) values.
 Two implementations compute the same (n, K) array of unweighted terms, columns in `REWARD_NAMES` order:
 
 - `TERMS` / `reward_terms_by_name`: one small function per term, written as the paper's table reads. This
-  is the specification: read it to see what a term pays for, change it to try a new term.
+  is the specification: read it to see what a term pays for, change it to try a new term. It is written
+  against the functions numpy and jax.numpy share, and the MJX backend runs it under `jax.jit`.
 - `reward_terms`: the same numbers in about twenty numpy calls for the whole batch (every squared norm the
-  terms need in one row per robot, summed per group in one pass), which the env calls every step. It reads
-  its constants from the same named tables, and the tests hold it to `reward_terms_by_name`.
+  terms need in one row per robot, summed per group in one pass), which the CPU env calls every step. It
+  reads its constants from the same named tables, and the tests hold it to `reward_terms_by_name`.
+  `reward_terms_for` picks the one for the arrays at hand.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
+
+from zerith_gym.arrays import namespace
 
 DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
     # task
@@ -91,12 +96,18 @@ class RewardInputs(NamedTuple):
 
 
 # ------------------------------------------------------------------------------ the terms, one by one
+# Written against the functions numpy and jax.numpy share (`zerith_gym.arrays`): the MJX backend runs
+# these very functions under `jax.jit`, where XLA fuses them.
+def _xp(x: RewardInputs) -> ModuleType:
+    return namespace(x.command)
+
+
 def _squared_norm(x: np.ndarray) -> np.ndarray:
-    return np.sum(x * x, axis=-1)
+    return (x * x).sum(axis=-1)
 
 
-def _kernel(name: str, squared: np.ndarray) -> np.ndarray:
-    return np.exp(-KERNEL_SHARPNESS[name] * squared)
+def _kernel(name: str, squared: np.ndarray, xp: ModuleType) -> np.ndarray:
+    return xp.exp(-KERNEL_SHARPNESS[name] * squared)
 
 
 def _per_foot(x: np.ndarray) -> np.ndarray:
@@ -106,29 +117,29 @@ def _per_foot(x: np.ndarray) -> np.ndarray:
 
 def alive(x: RewardInputs) -> np.ndarray:
     """1 for every step the robot is up."""
-    return np.ones(len(x.command))
+    return _xp(x).ones(len(x.command))
 
 
 def lin_vel_tracking(x: RewardInputs) -> np.ndarray:
     """exp(-5 |v_xy - v_cmd,xy|^2): follow the commanded planar velocity (body frame)."""
-    return _kernel("lin_vel_tracking", _squared_norm(x.base_linvel[:, :2] - x.command[:, :2]))
+    return _kernel("lin_vel_tracking", _squared_norm(x.base_linvel[:, :2] - x.command[:, :2]), _xp(x))
 
 
 def yaw_vel_tracking(x: RewardInputs) -> np.ndarray:
     """exp(-5 (w_z - w_cmd)^2): follow the commanded yaw rate."""
-    return _kernel("yaw_vel_tracking", (x.base_angvel[:, 2] - x.command[:, 2]) ** 2)
+    return _kernel("yaw_vel_tracking", (x.base_angvel[:, 2] - x.command[:, 2]) ** 2, _xp(x))
 
 
 def swing_force(x: RewardInputs) -> np.ndarray:
     """sum_feet (1 - C_foot) exp(-|F_foot|^2 / 100): no ground force on a foot that should swing."""
-    kernel = _kernel("swing_force", _squared_norm(_per_foot(x.foot_force)))
-    return np.sum((1.0 - x.stance) * kernel, axis=1)
+    kernel = _kernel("swing_force", _squared_norm(_per_foot(x.foot_force)), _xp(x))
+    return ((1.0 - x.stance) * kernel).sum(axis=1)
 
 
 def stance_velocity(x: RewardInputs) -> np.ndarray:
     """sum_feet C_foot exp(-|v_foot,xy|^2 / 5): a foot that should stand stays still."""
-    kernel = _kernel("stance_velocity", _squared_norm(_per_foot(x.foot_speed_xy)))
-    return np.sum(x.stance * kernel, axis=1)
+    kernel = _kernel("stance_velocity", _squared_norm(_per_foot(x.foot_speed_xy)), _xp(x))
+    return (x.stance * kernel).sum(axis=1)
 
 
 def raibert_placement(x: RewardInputs) -> np.ndarray:
@@ -138,55 +149,57 @@ def raibert_placement(x: RewardInputs) -> np.ndarray:
 
 def swing_height(x: RewardInputs) -> np.ndarray:
     """sum_feet (1 - C_foot) (h_foot - h_target)^2: lift a swinging foot to the clock's target height."""
-    return np.sum((1.0 - x.stance) * x.swing_height_error**2, axis=1)
+    return ((1.0 - x.stance) * x.swing_height_error**2).sum(axis=1)
 
 
 def body_height(x: RewardInputs) -> np.ndarray:
     """exp(-1000 (h - h_target)^2): keep the pelvis at its standing height."""
-    return _kernel("body_height", x.height_error**2)
+    return _kernel("body_height", x.height_error**2, _xp(x))
 
 
 def z_velocity(x: RewardInputs) -> np.ndarray:
     """v_z^2: no bouncing (world-frame vertical speed)."""
-    return np.einsum("ij,ij->i", x.base_up, x.base_linvel) ** 2
+    return (x.base_up * x.base_linvel).sum(axis=1) ** 2
 
 
 def foot_slip(x: RewardInputs) -> np.ndarray:
     """sum_feet contact |v_foot,xy|^2: a foot on the ground does not slide."""
-    return np.sum(x.foot_contact * _squared_norm(_per_foot(x.foot_speed_xy)), axis=1)
+    return (x.foot_contact * _squared_norm(_per_foot(x.foot_speed_xy))).sum(axis=1)
 
 
 def hip_position(x: RewardInputs) -> np.ndarray:
     """exp(-100 |q_hip roll, yaw - default|^2): keep the hips' roll and yaw near the default pose."""
-    return _kernel("hip_position", _squared_norm(x.hip_roll_yaw))
+    return _kernel("hip_position", _squared_norm(x.hip_roll_yaw), _xp(x))
 
 
 def feet_orientation(x: RewardInputs) -> np.ndarray:
     """exp(-10 sum_feet tilt): keep the soles flat."""
-    tilt = np.arccos(np.clip(x.foot_up_z, -1.0, 1.0))
-    return _kernel("feet_orientation", np.sum(tilt, axis=1))
+    xp = _xp(x)
+    tilt = xp.arccos(xp.clip(x.foot_up_z, -1.0, 1.0))
+    return _kernel("feet_orientation", tilt.sum(axis=1), xp)
 
 
 def feet_stumble(x: RewardInputs) -> np.ndarray:
     """1 if a foot's horizontal contact force exceeds 4 times its vertical one (hitting an obstacle)."""
+    xp = _xp(x)
     force = _per_foot(x.foot_force)
-    horizontal = np.hypot(force[..., 0], force[..., 1])
-    return np.any(horizontal > STUMBLE_FORCE_RATIO * np.abs(force[..., 2]), axis=1).astype(float)
+    horizontal = xp.hypot(force[..., 0], force[..., 1])
+    return (horizontal > STUMBLE_FORCE_RATIO * xp.abs(force[..., 2])).any(axis=1).astype(x.torques.dtype)
 
 
 def orientation(x: RewardInputs) -> np.ndarray:
     """exp(-10 |g_xy|^2) of the projected gravity: keep the pelvis upright."""
-    return _kernel("orientation", _squared_norm(x.base_up[:, :2]))
+    return _kernel("orientation", _squared_norm(x.base_up[:, :2]), _xp(x))
 
 
 def leg_collision(x: RewardInputs) -> np.ndarray:
     """1 if the thighs or shanks of the two legs touch."""
-    return x.leg_collision.astype(float)
+    return x.leg_collision.astype(x.torques.dtype)
 
 
 def joint_limit(x: RewardInputs) -> np.ndarray:
     """1 if a joint is beyond its soft limits."""
-    return x.outside_limits.astype(float)
+    return x.outside_limits.astype(x.torques.dtype)
 
 
 def torques(x: RewardInputs) -> np.ndarray:
@@ -206,7 +219,7 @@ def joint_accelerations(x: RewardInputs) -> np.ndarray:
 
 def action_rate(x: RewardInputs) -> np.ndarray:
     """|a_t|: the size of the action."""
-    return np.sqrt(_squared_norm(x.action))
+    return _xp(x).sqrt(_squared_norm(x.action))
 
 
 def action_smoothing(x: RewardInputs) -> np.ndarray:
@@ -225,7 +238,7 @@ TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {name: globals()[name] 
 
 def reward_terms_by_name(x: RewardInputs) -> np.ndarray:
     """All reward terms, unweighted, (n, len(REWARD_NAMES)): one function call per term."""
-    return np.column_stack([TERMS[name](x) for name in REWARD_NAMES])
+    return _xp(x).stack([TERMS[name](x) for name in REWARD_NAMES], axis=1)
 
 
 class TermValues(Mapping[str, float]):
@@ -418,3 +431,9 @@ _TERM_SOURCE = {
     "action_smoothing_2": "sum:action_step_2",
 }
 _TERM_COLUMNS = np.array([_POOL.index(_TERM_SOURCE.get(name, name)) for name in REWARD_NAMES])
+
+
+def reward_terms_for(x: RewardInputs) -> np.ndarray:
+    """All reward terms, unweighted: the fused numpy path for numpy inputs, the named functions for JAX
+    (which `jax.jit` fuses by itself)."""
+    return reward_terms(x) if _xp(x) is np else reward_terms_by_name(x)

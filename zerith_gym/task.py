@@ -1,8 +1,15 @@
-"""The Zerith1-v0 task for a batch of robots: numpy over a leading axis, one random generator per robot.
+"""The Zerith1-v0 task: what is observed, rewarded, randomized and disturbed, for a batch of robots.
 
-`ZerithTask` holds the task state of n robots (gait clock, commands, action history, external forces,
-sampled domain parameters) and turns physics readings into observations, rewards and episode ends.
-It never touches MuJoCo: the caller steps the physics. Per control step:
+The task's math is a set of pure functions over arrays with a leading robot axis, written against the
+functions numpy and jax.numpy share (`zerith_gym.arrays`): `reset_values`, `step_disturbances`,
+`action_targets`, `ground`, `observations`, `reward_inputs`, `evaluate`. Both backends call them: the
+CPU backend with numpy (`ZerithTask` below), the MJX backend with jax.numpy under `jax.jit`
+(`zerith_gym.mjx`). What a scenario sets is handed to them as arrays (`ScenarioArrays`), so a curriculum
+changes it without rebuilding anything.
+
+`ZerithTask` holds the CPU task state of n robots (gait clock, commands, action history, external
+forces, sampled domain parameters) and turns physics readings into observations, rewards and episode
+ends. It never touches MuJoCo: the caller steps the physics. Per control step:
 
 1. `before_physics(actions)` -> joint targets per delay lag, the external force, optional velocity kicks;
 2. the caller runs `decimation` physics steps (sub-step j of robot i applies `targets[i, lags[i, j]]`);
@@ -14,21 +21,14 @@ robots stepped together follow exactly the trajectories of n single environments
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from zerith_gym import gait, robot
-from zerith_gym.commands import COMMAND_DRAWS, sample_commands
-from zerith_gym.disturbances import (
-    FORCE_DRAWS,
-    PUSH_DRAWS,
-    horizontal_vectors,
-    push_due,
-    schedule_table,
-    update_forces,
-)
+from zerith_gym.arrays import namespace
+from zerith_gym.commands import COMMAND_DRAWS, command_bounds, commands_from_uniforms
+from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due, schedule_table
 from zerith_gym.observations import (
     CRITIC_SIZE,
     HEIGHT_SAMPLE_OFFSETS,
@@ -44,9 +44,9 @@ from zerith_gym.randomization import (
     domain_bounds,
     uniform_in,
 )
-from zerith_gym.rewards import RewardInputs, reward_terms
+from zerith_gym.rewards import RewardInputs, reward_terms_for
 from zerith_gym.scenarios import Scenario
-from zerith_gym.terrain import Terrain
+from zerith_gym.terrain import Terrain, TerrainSpec
 
 EPISODE_STEPS = 1000
 """Default control steps in an episode (20 s): reaching them is a truncation."""
@@ -78,10 +78,334 @@ _RESET = layout_slices(
 RESET_DRAWS = _RESET["step"].stop
 """Uniform numbers each robot draws per reset, in the order of `_RESET`."""
 _COS_FALL_TILT = float(np.cos(FALL_TILT))
+GAIT_TABLE = gait.cycle_table(robot.CONTROL_DT)
+"""Every clock-driven signal at each control step of a gait cycle (see `gait.cycle_table`)."""
+_HALF_STANCE = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
 
 
-@dataclass
-class StepOutput:
+class ScenarioArrays(NamedTuple):
+    """What a scenario sets for the task, as arrays (`scenario_arrays`).
+
+    The task functions read these instead of the `Scenario` itself, so that an env can follow another
+    scenario between rollouts by swapping arrays (and a jitted MJX step needs no new trace).
+    """
+
+    due: np.ndarray  # (episode_steps, 4) bool, at each control step: force draw, force on, command draw, push
+    domain_low: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
+    domain_high: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
+    force_magnitude: np.ndarray  # (2,) N
+    push_velocity: np.ndarray  # (2,) m/s
+    command_low: np.ndarray  # (3,)
+    command_high: np.ndarray  # (3,)
+    standing_probability: np.ndarray  # ()
+    fixed_command: np.ndarray  # (3,) the command of every episode where `has_fixed_command`
+    has_fixed_command: np.ndarray  # () bool
+    noise_scale: np.ndarray  # (POLICY_SIZE,) half width of the policy observation noise
+    init_roll_pitch: np.ndarray  # () half width (rad) of the reset roll and pitch
+    init_joint_scale: np.ndarray  # (2,) range of the factor on the default joint positions at reset
+
+
+def scenario_arrays(
+    scenario: Scenario, command: tuple[float, float, float] | None, episode_steps: int
+) -> ScenarioArrays:
+    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`."""
+    ranges = scenario.randomization
+    command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
+    steps = np.arange(episode_steps)
+    due = np.column_stack(
+        [
+            *schedule_table(scenario.force, episode_steps),
+            (steps > 0) & (steps % command_interval == 0) & (command is None),
+            push_due(episode_steps, round(ranges.push_interval_s / robot.CONTROL_DT), ranges.push_velocity),
+        ]
+    )
+    low, high = command_bounds(scenario.command_ranges)
+    domain_low, domain_high = domain_bounds(ranges)
+    return ScenarioArrays(
+        due=due,
+        domain_low=domain_low,
+        domain_high=domain_high,
+        force_magnitude=np.array(scenario.force.magnitude, dtype=float),
+        push_velocity=np.array(ranges.push_velocity, dtype=float),
+        command_low=low,
+        command_high=high,
+        standing_probability=np.array(scenario.command_ranges.standing_probability),
+        fixed_command=np.zeros(3) if command is None else np.asarray(command, dtype=float),
+        has_fixed_command=np.array(command is not None),
+        noise_scale=policy_noise_scale() * ranges.observation_noise,
+        init_roll_pitch=np.array(ranges.init_roll_pitch, dtype=float),
+        init_joint_scale=np.array(ranges.init_joint_scale, dtype=float),
+    )
+
+
+class ResetValues(NamedTuple):
+    """A new episode's start of n robots, drawn by `reset_values`."""
+
+    qpos: np.ndarray  # (n, 7 + 12) base position (height 0: the caller puts the feet on the ground), joints
+    domain_vector: np.ndarray  # (n, DOMAIN_VECTOR_SIZE), the critic's layout (`DomainParams.from_vector`)
+    lags: np.ndarray  # (n, DECIMATION) control steps of delay of each physics sub-step's action
+    command: np.ndarray  # (n, 3)
+    noise_uniforms: np.ndarray  # (n, STEP_DRAWS) the uniforms of the first observation's noise
+
+
+def reset_values(uniforms: np.ndarray, sc: ScenarioArrays, terrain: TerrainSpec) -> ResetValues:
+    """The start of new episodes from uniforms (n, RESET_DRAWS) in [0, 1), in the order of `_RESET`."""
+    xp = namespace(uniforms)
+    u = {name: uniforms[:, part] for name, part in _RESET.items()}
+    half_roll_pitch = uniform_in((-1.0, 1.0), u["roll_pitch"]) * sc.init_roll_pitch / 2
+    (cr, cp), (sr, sp) = xp.cos(half_roll_pitch).T, xp.sin(half_roll_pitch).T
+    spawn = uniform_in((-1.0, 1.0), u["spawn"]) * terrain.spawn_jitter
+    joint_scale = uniform_in(sc.init_joint_scale, u["joint_scale"])
+    qpos = xp.concatenate(
+        [
+            np.asarray(terrain.spawn_xy) + spawn,
+            xp.stack([xp.zeros_like(cr), cp * cr, cp * sr, sp * cr, -sp * sr], axis=1),
+            robot.DEFAULT_JOINT_POS * joint_scale,
+        ],
+        axis=1,
+    )
+    domain_vector = uniform_in((sc.domain_low, sc.domain_high), u["domain"])
+    domain = DomainParams.from_vector(domain_vector)
+    drawn = commands_from_uniforms(u["command"], sc.command_low, sc.command_high, sc.standing_probability)
+    return ResetValues(
+        qpos=qpos,
+        domain_vector=domain_vector,
+        lags=delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION),
+        command=xp.where(sc.has_fixed_command, sc.fixed_command, drawn),
+        noise_uniforms=u["step"],
+    )
+
+
+def action_targets(actions: np.ndarray) -> np.ndarray:
+    """Joint targets (n, lags, 12) of an action history (n, lags, 12) in [-1, 1], newest first."""
+    return robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions
+
+
+class Disturbances(NamedTuple):
+    """This control step's external force, command and base velocity kick of n robots."""
+
+    force: np.ndarray  # (n, 3) on each body of the scenario's force target
+    command: np.ndarray  # (n, 3)
+    kicks: np.ndarray  # (n, 2) horizontal velocity added to the base (zero unless a push is due)
+
+
+def step_disturbances(
+    uniforms: np.ndarray, due: np.ndarray, force: np.ndarray, command: np.ndarray, sc: ScenarioArrays
+) -> Disturbances:
+    """Redraw forces, commands and pushes where `due` (n, 4) says, from uniforms (n, STEP_DRAWS)."""
+    xp = namespace(uniforms, due)
+    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude)
+    drawn_command = commands_from_uniforms(
+        uniforms[:, _COMMAND], sc.command_low, sc.command_high, sc.standing_probability
+    )
+    return Disturbances(
+        force=xp.where(due[:, 0:1], drawn_force, force) * due[:, 1:2],
+        command=xp.where(due[:, 2:3], drawn_command, command),
+        kicks=horizontal_vectors(uniforms[:, _PUSH], sc.push_velocity)[:, :2] * due[:, 3:4],
+    )
+
+
+class Ground(NamedTuple):
+    """Heights above the ground under the robots (the terrain's height subtracted)."""
+
+    base_height: np.ndarray  # (n,) pelvis
+    foot_clearance: np.ndarray  # (n, 2) soles
+    height_samples: np.ndarray  # (n, 18) soles above the ground at the sample points around each foot
+    foot_contact: np.ndarray  # (n, 2) bool
+
+
+def ground(r: robot.Sensors, terrain: Terrain) -> Ground:
+    """Pelvis and soles above the ground under them, and which feet touch it."""
+    xp = namespace(r.foot_pos)
+    foot_z = r.foot_pos[:, _FOOT_Z]
+    if terrain.is_plane:
+        base_height = r.base_pos[:, 2]
+        foot_clearance = foot_z
+        height_samples = foot_z[:, _FOOT_OF_SAMPLE]  # the sole height at every sample point
+    else:
+        n = len(foot_z)
+        base_height = r.base_pos[:, 2] - terrain.height_at(r.base_pos[:, :2])
+        feet_xy = r.foot_pos[:, _FOOT_XY].reshape(n, 2, 2)
+        foot_clearance = foot_z - terrain.height_at(feet_xy)
+        cos_yaw, sin_yaw = _yaw(r.base_heading)
+        x, y = HEIGHT_SAMPLE_OFFSETS[:, 0], HEIGHT_SAMPLE_OFFSETS[:, 1]
+        offsets = xp.stack([cos_yaw * x - sin_yaw * y, sin_yaw * x + cos_yaw * y], axis=-1)  # (n, 9, 2)
+        points = feet_xy[:, :, None, :] + offsets[:, None]  # (n, 2, 9, 2)
+        height_samples = (foot_z[:, :, None] - terrain.height_at(points)).reshape(n, -1)
+    foot_contact = r.foot_force[:, _FOOT_Z] > CONTACT_THRESHOLD
+    return Ground(base_height, foot_clearance, height_samples, foot_contact)
+
+
+def observations(
+    r: robot.Sensors,
+    ground: Ground,
+    clock: np.ndarray,
+    command: np.ndarray,
+    last_action: np.ndarray,
+    force: np.ndarray,
+    domain_vector: np.ndarray,
+    noise: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Policy and critic observations (float32) of n robots; `noise` (n, POLICY_SIZE) is added to the
+    policy's (None: noiseless)."""
+    xp = namespace(r.base_up)
+    up = r.base_up
+    policy = xp.concatenate(
+        [
+            xp.arctan2(up[:, 1:2], up[:, 2:3]),  # roll
+            xp.arcsin(xp.minimum(xp.maximum(-up[:, 0:1], -1.0), 1.0)),  # pitch
+            r.base_angvel,
+            clock[:, 0:2],
+            command,
+            r.joint_pos - robot.DEFAULT_JOINT_POS,
+            r.joint_vel,
+            last_action,
+        ],
+        axis=1,
+    )
+    critic = xp.concatenate(
+        [
+            policy,
+            r.base_linvel,
+            ground.base_height[:, None],
+            ground.height_samples,
+            ground.foot_contact,
+            r.foot_force,
+            clock[:, 2:4],  # desired contacts
+            force,
+            domain_vector,
+        ],
+        axis=1,
+        dtype=np.float32,
+    )
+    if noise is not None:
+        policy = policy + noise
+    return policy.astype(np.float32), critic
+
+
+def observation_noise(uniforms: np.ndarray, sc: ScenarioArrays) -> np.ndarray:
+    """The policy observation noise (n, POLICY_SIZE) from a step's uniforms (n, STEP_DRAWS)."""
+    return (2.0 * uniforms[:, _NOISE] - 1.0) * sc.noise_scale
+
+
+def reward_inputs(
+    r: robot.Sensors,
+    ground: Ground,
+    clock: np.ndarray,
+    command: np.ndarray,
+    actions: np.ndarray,
+    last_joint_vel: np.ndarray,
+    soft_limits: tuple[np.ndarray, np.ndarray],
+) -> RewardInputs:
+    """What the reward terms of n robots read (zerith_gym.rewards); `actions` (n, 3, 12) newest first."""
+    xp = namespace(r.foot_pos)
+    foot_pos = r.foot_pos
+    # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
+    cos_yaw, sin_yaw = _yaw(r.base_heading)
+    rel_x = foot_pos[:, 0::3] - r.base_pos[:, 0:1]
+    rel_y = foot_pos[:, 1::3] - r.base_pos[:, 1:2]
+    shift = clock[:, 6:8]  # Raibert: feet ahead/behind the hips by shift * commanded velocity
+    raibert_error = xp.concatenate(
+        [
+            cos_yaw * rel_x + sin_yaw * rel_y - shift * command[:, 0:1],
+            cos_yaw * rel_y - sin_yaw * rel_x - shift * command[:, 1:2] - _HALF_STANCE,
+        ],
+        axis=1,
+    )
+    joint_pos, joint_vel = r.joint_pos, r.joint_vel
+    soft_low, soft_high = soft_limits
+    return RewardInputs(
+        command=command,
+        base_linvel=r.base_linvel,
+        base_angvel=r.base_angvel,
+        base_up=r.base_up,
+        height_error=ground.base_height - robot.STANDING_HEIGHT,
+        joint_vel=joint_vel,
+        joint_acc=(joint_vel - last_joint_vel) * (1.0 / robot.CONTROL_DT),
+        torques=r.joint_torque,
+        outside_limits=((joint_pos < soft_low) | (joint_pos > soft_high)).any(axis=1),
+        hip_roll_yaw=joint_pos[:, _HIP_ROLL_YAW] - robot.DEFAULT_JOINT_POS[_HIP_ROLL_YAW],
+        foot_up_z=r.foot_up[:, _FOOT_Z],
+        foot_speed_xy=r.foot_linvel[:, _FOOT_XY],
+        foot_force=r.foot_force,
+        foot_contact=ground.foot_contact,
+        swing_height_error=ground.foot_clearance - clock[:, 4:6],
+        raibert_error=raibert_error,
+        stance=clock[:, 2:4],
+        leg_collision=r.leg_collision[:, 0] > 0,
+        action=actions[:, 0],
+        last_action=actions[:, 1],
+        last_last_action=actions[:, 2],
+    )
+
+
+def falls(r: robot.Sensors, ground: Ground) -> np.ndarray:
+    """Which robots fell: pelvis too low above the ground or tilted too far."""
+    return (ground.base_height < FALL_HEIGHT) | (r.base_up[:, 2] < _COS_FALL_TILT)
+
+
+class TaskConstants(NamedTuple):
+    """What the task functions need from the robot model and the env options."""
+
+    terrain: Terrain
+    reward_weights: np.ndarray  # (K,) weights times the control period, `REWARD_NAMES` order
+    soft_limits: tuple[np.ndarray, np.ndarray]  # (12,) each: soft joint limits of the joint-limit term
+    episode_steps: int
+
+
+def task_constants(
+    terrain: Terrain, joint_range: np.ndarray, reward_weights: np.ndarray, episode_steps: int
+) -> TaskConstants:
+    """`TaskConstants` from the model's joint ranges (12, 2) and the unscaled reward weights (K,)."""
+    centre, half = joint_range.mean(axis=1), 0.5 * (joint_range[:, 1] - joint_range[:, 0])
+    soft = (centre - JOINT_SOFT_LIMIT * half, centre + JOINT_SOFT_LIMIT * half)
+    return TaskConstants(terrain, reward_weights * robot.CONTROL_DT, soft, episode_steps)
+
+
+class Evaluation(NamedTuple):
+    """A control step of n robots judged from the sensors after physics (`evaluate`)."""
+
+    policy_obs: np.ndarray  # (n, POLICY_SIZE) float32
+    critic_obs: np.ndarray  # (n, CRITIC_SIZE) float32
+    terms: np.ndarray  # (n, K) weighted, dt-scaled reward terms, columns in REWARD_NAMES order
+    reward: np.ndarray  # (n,)
+    fall: np.ndarray  # (n,) bool
+    lin_vel_error: np.ndarray  # (n,) |v_xy - v_xy_cmd|, m/s
+    ang_vel_error: np.ndarray  # (n,) |yaw rate - commanded|, rad/s
+
+
+def evaluate(
+    r: robot.Sensors,
+    gait_step: np.ndarray,
+    command: np.ndarray,
+    actions: np.ndarray,
+    last_joint_vel: np.ndarray,
+    force: np.ndarray,
+    domain_vector: np.ndarray,
+    noise: np.ndarray | None,
+    constants: TaskConstants,
+) -> Evaluation:
+    """Observations, rewards and falls of n robots from their sensor readings after a control step."""
+    xp = namespace(r.base_pos)
+    clock = GAIT_TABLE[gait_step] if xp is np else xp.asarray(GAIT_TABLE, r.base_pos.dtype)[gait_step]
+    g = ground(r, constants.terrain)
+    inputs = reward_inputs(r, g, clock, command, actions, last_joint_vel, constants.soft_limits)
+    terms = reward_terms_for(inputs) * constants.reward_weights
+    policy, critic = observations(r, g, clock, command, actions[:, 0], force, domain_vector, noise)
+    linvel, angvel = r.base_linvel, r.base_angvel
+    velocity_error = linvel[:, :2] - command[:, :2]
+    return Evaluation(
+        policy_obs=policy,
+        critic_obs=critic,
+        terms=terms,
+        reward=terms.sum(axis=1),
+        fall=falls(r, g),
+        lin_vel_error=xp.hypot(velocity_error[:, 0], velocity_error[:, 1]),
+        ang_vel_error=xp.abs(angvel[:, 2] - command[:, 2]),
+    )
+
+
+class StepOutput(NamedTuple):
     """What one control step returns for n robots."""
 
     policy_obs: np.ndarray  # (n, POLICY_SIZE) float32
@@ -96,40 +420,53 @@ class StepOutput:
     terms: np.ndarray  # (n, K) weighted, dt-scaled reward terms of this step, columns in REWARD_NAMES order
 
 
-class _Ground(NamedTuple):
-    """Heights above the ground under the robots (the terrain's height subtracted)."""
-
-    base_height: np.ndarray  # (n,) pelvis
-    foot_clearance: np.ndarray  # (n, 2) soles
-    height_samples: np.ndarray  # (n, 18) soles above the ground at the sample points around each foot
-    foot_contact: np.ndarray  # (n, 2) bool
+def step_output(
+    e: Evaluation,
+    unstable: np.ndarray,
+    step_count: np.ndarray,
+    episode_steps: int,
+    last_policy: np.ndarray,
+    last_critic: np.ndarray,
+) -> StepOutput:
+    """The step's outcome: a fall terminates, the time limit or an unstable simulation truncates; an
+    unstable robot keeps its last observations and gets no reward."""
+    xp = namespace(e.reward, unstable)
+    fall = e.fall & ~unstable
+    column = unstable[:, None]
+    return StepOutput(
+        policy_obs=xp.where(column, last_policy, e.policy_obs),
+        critic_obs=xp.where(column, last_critic, e.critic_obs),
+        reward=xp.where(unstable, 0.0, e.reward),
+        terminated=fall,
+        truncated=((step_count >= episode_steps) | unstable) & ~fall,
+        fall=fall,
+        sim_unstable=unstable,
+        lin_vel_error=e.lin_vel_error,
+        ang_vel_error=e.ang_vel_error,
+        terms=xp.where(column, 0.0, e.terms),
+    )
 
 
 class ZerithTask:
-    """Task state and per-step logic of `num_robots` Zerith-1 robots in one scenario."""
+    """Task state of `num_robots` Zerith-1 robots in one scenario, on numpy (the CPU backend).
+
+    Each robot has its own numpy random generator, drawing a fixed amount per reset and per step, so n
+    robots stepped together follow exactly the trajectories of n single envs seeded alike.
+    """
 
     def __init__(
         self,
         num_robots: int,
         scenario: Scenario,
-        terrain: Terrain,
         sensors: robot.Sensors,
-        joint_range: np.ndarray,
-        reward_weights: np.ndarray,
+        constants: TaskConstants,
         command: tuple[float, float, float] | None = None,
-        episode_steps: int = EPISODE_STEPS,
     ) -> None:
         n = self.num_robots = num_robots
-        self.episode_steps = episode_steps
-        self.terrain = terrain
-        self.reward_weights = reward_weights * robot.CONTROL_DT
-        centre, half = joint_range.mean(axis=1), 0.5 * (joint_range[:, 1] - joint_range[:, 0])
-        self.soft_low = centre - JOINT_SOFT_LIMIT * half
-        self.soft_high = centre + JOINT_SOFT_LIMIT * half
-        self.set_scenario(scenario, command)
-        self.gait_table = gait.cycle_table(robot.CONTROL_DT)
+        self.constants = constants
+        self.episode_steps = constants.episode_steps
         self.sensors = sensors
-        self._half_stance = np.array([0.5 * robot.HIP_WIDTH, -0.5 * robot.HIP_WIDTH])
+        self.set_scenario(scenario, command)
 
         self.rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self.step_count = np.zeros(n, dtype=int)
@@ -152,25 +489,8 @@ class ZerithTask:
         between rollouts.
         """
         self.scenario = scenario
-        self.ranges = scenario.randomization
-        self.fixed_command = None if command is None else np.asarray(command, dtype=float)
-        self.noise_scale = policy_noise_scale() * self.ranges.observation_noise
-        self._noisy = bool(self.noise_scale.any())
-        self._domain_bounds = domain_bounds(self.ranges)
-        # What is due at each control step of an episode: force draw, force on, command draw, push.
-        command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
-        steps = np.arange(self.episode_steps)
-        self._due = np.column_stack(
-            [
-                *schedule_table(scenario.force, self.episode_steps),
-                (steps > 0) & (steps % command_interval == 0) & (self.fixed_command is None),
-                push_due(
-                    self.episode_steps,
-                    round(self.ranges.push_interval_s / robot.CONTROL_DT),
-                    self.ranges.push_velocity,
-                ),
-            ]
-        )
+        self.arrays = scenario_arrays(scenario, command, self.episode_steps)
+        self._noisy = bool(self.arrays.noise_scale.any())
 
     # ----------------------------------------------------------------------------------------- reset
     def reset(self, ids: np.ndarray) -> tuple[DomainParams, np.ndarray]:
@@ -180,40 +500,20 @@ class ZerithTask:
         (len(ids), 7 + 12) with the base height left at 0 (the caller places the feet on the ground).
         """
         ids = np.asarray(ids)
-        ranges, terrain = self.ranges, self.terrain.spec
         u = np.empty((len(ids), RESET_DRAWS))
         for k, i in enumerate(ids.tolist()):
             self.rngs[i].random(out=u[k])
-        half_roll_pitch = uniform_in((-1.0, 1.0), u[:, _RESET["roll_pitch"]]) * ranges.init_roll_pitch / 2
-        (cr, cp), (sr, sp) = np.cos(half_roll_pitch).T, np.sin(half_roll_pitch).T
-        spawn = uniform_in((-1.0, 1.0), u[:, _RESET["spawn"]]) * terrain.spawn_jitter
-        joint_scale = uniform_in(ranges.init_joint_scale, u[:, _RESET["joint_scale"]])
-        qpos = np.column_stack(
-            [
-                terrain.spawn_xy + spawn,
-                np.zeros(len(ids)),
-                cp * cr,
-                cp * sr,
-                sp * cr,
-                -sp * sr,
-                robot.DEFAULT_JOINT_POS * joint_scale,
-            ]
-        )
-        domain_vector = uniform_in(self._domain_bounds, u[:, _RESET["domain"]])
-        self.domain_vector[ids] = domain_vector
-        domain = DomainParams.from_vector(domain_vector)
-        self.lags[ids] = delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION)
-        if self.fixed_command is None:
-            self.command[ids] = sample_commands(u[:, _RESET["command"]], self.scenario.command_ranges)
-        else:
-            self.command[ids] = self.fixed_command
-        self._uniforms[ids] = u[:, _RESET["step"]]  # the first observation's noise
+        start = reset_values(u, self.arrays, self.constants.terrain.spec)
+        self.domain_vector[ids] = start.domain_vector
+        self.lags[ids] = start.lags
+        self.command[ids] = start.command
+        self._uniforms[ids] = start.noise_uniforms  # the first observation's noise
         self.step_count[ids] = 0
         self.gait_step[ids] = 0
         self.actions[ids] = 0.0
         self.joint_vel[ids] = 0.0
         self.force[ids] = 0.0
-        return domain, qpos
+        return DomainParams.from_vector(start.domain_vector), start.qpos
 
     def set_command(self, ids: np.ndarray, command: np.ndarray) -> None:
         """Override the current command of robots `ids` (until their next scheduled resampling)."""
@@ -228,178 +528,59 @@ class ZerithTask:
         """
         self.actions[:, 1:] = self.actions[:, :-1]
         self.actions[:, 0] = actions
-        targets = robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * self.actions
         u = self._uniforms
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
-        due = self._due[self.step_count]
-        _, _, command_due, push_due = np.logical_or.reduce(due, axis=0).tolist()
-        self.force = update_forces(
-            due[:, 0], due[:, 1], u[:, _FORCE], self.force, self.scenario.force.magnitude
-        )
-        if command_due:
-            self.command[due[:, 2]] = sample_commands(u[due[:, 2], _COMMAND], self.scenario.command_ranges)
-        kicks = None
-        if push_due:
-            kicks = horizontal_vectors(u[:, _PUSH], self.ranges.push_velocity)[:, :2] * due[:, 3:4]
-        return targets, self.force, kicks
+        due = self.arrays.due[self.step_count]
+        drawn = step_disturbances(u, due, self.force, self.command, self.arrays)
+        self.force, self.command = drawn.force, drawn.command
+        push = bool(np.logical_or.reduce(due[:, 3]))
+        return action_targets(self.actions), self.force, drawn.kicks if push else None
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
         self.step_count += 1
-        self.gait_step = (self.gait_step + 1) % len(self.gait_table)
-        any_unstable = bool(np.logical_or.reduce(unstable))
-        if any_unstable:
+        self.gait_step = (self.gait_step + 1) % len(GAIT_TABLE)
+        if np.logical_or.reduce(unstable):
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
-        every = slice(None)
         readings = self.sensors.read(sensordata)
-        clock = self.gait_table[self.gait_step]  # (n, 8), see gait.cycle_table
-        ground = self._ground(readings)
-        terms = reward_terms(self._reward_inputs(every, readings, ground, clock))
-        terms *= self.reward_weights
-        policy, critic = self._observations(every, readings, ground, clock)
-        self.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
-        reward = np.add.reduce(terms, axis=1)
-        fall = self._falls(readings, ground) & ~unstable
-        truncated = ((self.step_count >= self.episode_steps) | unstable) & ~fall
-        if any_unstable:
-            policy[unstable] = self.policy_obs[unstable]
-            critic[unstable] = self.critic_obs[unstable]
-            terms[unstable] = 0.0
-            reward[unstable] = 0.0
-        self.policy_obs, self.critic_obs = policy, critic
-        linvel, angvel, command = readings.base_linvel, readings.base_angvel, self.command
-        velocity_error = linvel[:, :2] - command[:, :2]
-        return StepOutput(
-            policy_obs=policy,
-            critic_obs=critic,
-            reward=reward,
-            terminated=fall,
-            truncated=truncated,
-            fall=fall,
-            sim_unstable=unstable,
-            lin_vel_error=np.hypot(velocity_error[:, 0], velocity_error[:, 1]),
-            ang_vel_error=np.abs(angvel[:, 2] - command[:, 2]),
-            terms=terms,
+        noise = observation_noise(self._uniforms, self.arrays) if self._noisy else None
+        e = evaluate(
+            readings,
+            self.gait_step,
+            self.command,
+            self.actions,
+            self.joint_vel,
+            self.force,
+            self.domain_vector,
+            noise,
+            self.constants,
         )
+        self.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
+        out = step_output(e, unstable, self.step_count, self.episode_steps, self.policy_obs, self.critic_obs)
+        self.policy_obs, self.critic_obs = out.policy_obs, out.critic_obs
+        return out
 
     def observe(self, ids: np.ndarray, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Policy and critic observations of robots `ids` right after their reset, from their sensors."""
         readings = self.sensors.read(sensordata)
-        clock = self.gait_table[self.gait_step[ids]]
-        policy, critic = self._observations(ids, readings, self._ground(readings), clock)
+        clock = GAIT_TABLE[self.gait_step[ids]]
+        noise = observation_noise(self._uniforms[ids], self.arrays) if self._noisy else None
+        policy, critic = observations(
+            readings,
+            ground(readings, self.constants.terrain),
+            clock,
+            self.command[ids],
+            self.actions[ids, 0],
+            self.force[ids],
+            self.domain_vector[ids],
+            noise,
+        )
         self.joint_vel[ids] = readings.joint_vel
         # New arrays: those of the last step were handed out (terminal observations of these robots).
         self.policy_obs, self.critic_obs = self.policy_obs.copy(), self.critic_obs.copy()
         self.policy_obs[ids], self.critic_obs[ids] = policy, critic
         return policy, critic
-
-    # ----------------------------------------------------------------- from sensor readings (no state change)
-    def _ground(self, r: robot.Sensors) -> _Ground:
-        """Pelvis and soles above the ground under them, and which feet touch it."""
-        foot_z = r.foot_pos[:, _FOOT_Z]
-        if self.terrain.is_plane:
-            base_height = r.base_pos[:, 2]
-            foot_clearance = foot_z
-            height_samples = foot_z[:, _FOOT_OF_SAMPLE]  # the sole height at every sample point
-        else:
-            n = len(foot_z)
-            base_height = r.base_pos[:, 2] - self.terrain.height_at(r.base_pos[:, :2])
-            feet_xy = r.foot_pos[:, _FOOT_XY].reshape(n, 2, 2)
-            foot_clearance = foot_z - self.terrain.height_at(feet_xy)
-            cos_yaw, sin_yaw = _yaw(r.base_heading)
-            x, y = HEIGHT_SAMPLE_OFFSETS[:, 0], HEIGHT_SAMPLE_OFFSETS[:, 1]
-            offsets = np.stack([cos_yaw * x - sin_yaw * y, sin_yaw * x + cos_yaw * y], axis=-1)  # (n, 9, 2)
-            points = feet_xy[:, :, None, :] + offsets[:, None]  # (n, 2, 9, 2)
-            height_samples = (foot_z[:, :, None] - self.terrain.height_at(points)).reshape(n, -1)
-        foot_contact = r.foot_force[:, _FOOT_Z] > CONTACT_THRESHOLD
-        return _Ground(base_height, foot_clearance, height_samples, foot_contact)
-
-    def _observations(
-        self, sel: slice | np.ndarray, r: robot.Sensors, ground: _Ground, clock: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Policy (noisy where the scenario says so) and critic observations (float32) of robots `sel`."""
-        up = r.base_up
-        policy = np.concatenate(
-            [
-                np.arctan2(up[:, 1:2], up[:, 2:3]),  # roll
-                np.arcsin(np.minimum(np.maximum(-up[:, 0:1], -1.0), 1.0)),  # pitch
-                r.base_angvel,
-                clock[:, 0:2],
-                self.command[sel],
-                r.joint_pos - robot.DEFAULT_JOINT_POS,
-                r.joint_vel,
-                self.actions[sel, 0],
-            ],
-            axis=1,
-        )
-        critic = np.concatenate(
-            [
-                policy,
-                r.base_linvel,
-                ground.base_height[:, None],
-                ground.height_samples,
-                ground.foot_contact,
-                r.foot_force,
-                clock[:, 2:4],  # desired contacts
-                self.force[sel],
-                self.domain_vector[sel],
-            ],
-            axis=1,
-            dtype=np.float32,
-        )
-        if self._noisy:
-            policy += (2.0 * self._uniforms[sel, _NOISE] - 1.0) * self.noise_scale
-        return policy.astype(np.float32), critic
-
-    def _reward_inputs(
-        self, sel: slice | np.ndarray, r: robot.Sensors, ground: _Ground, clock: np.ndarray
-    ) -> RewardInputs:
-        """What the reward terms of robots `sel` read (zerith_gym.rewards)."""
-        command, actions, foot_pos = self.command[sel], self.actions[sel], r.foot_pos
-        # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
-        cos_yaw, sin_yaw = _yaw(r.base_heading)
-        rel_x = foot_pos[:, 0::3] - r.base_pos[:, 0:1]
-        rel_y = foot_pos[:, 1::3] - r.base_pos[:, 1:2]
-        shift = clock[:, 6:8]  # Raibert: feet ahead/behind the hips by shift * commanded velocity
-        raibert_error = np.concatenate(
-            [
-                cos_yaw * rel_x + sin_yaw * rel_y - shift * command[:, 0:1],
-                cos_yaw * rel_y - sin_yaw * rel_x - shift * command[:, 1:2] - self._half_stance,
-            ],
-            axis=1,
-        )
-        joint_pos, joint_vel = r.joint_pos, r.joint_vel
-        return RewardInputs(
-            command=command,
-            base_linvel=r.base_linvel,
-            base_angvel=r.base_angvel,
-            base_up=r.base_up,
-            height_error=ground.base_height - robot.STANDING_HEIGHT,
-            joint_vel=joint_vel,
-            joint_acc=(joint_vel - self.joint_vel[sel]) * (1.0 / robot.CONTROL_DT),
-            torques=r.joint_torque,
-            outside_limits=np.logical_or.reduce(
-                (joint_pos < self.soft_low) | (joint_pos > self.soft_high), axis=1
-            ),
-            hip_roll_yaw=joint_pos[:, _HIP_ROLL_YAW] - robot.DEFAULT_JOINT_POS[_HIP_ROLL_YAW],
-            foot_up_z=r.foot_up[:, _FOOT_Z],
-            foot_speed_xy=r.foot_linvel[:, _FOOT_XY],
-            foot_force=r.foot_force,
-            foot_contact=ground.foot_contact,
-            swing_height_error=ground.foot_clearance - clock[:, 4:6],
-            raibert_error=raibert_error,
-            stance=clock[:, 2:4],
-            leg_collision=r.leg_collision[:, 0] > 0,
-            action=actions[:, 0],
-            last_action=actions[:, 1],
-            last_last_action=actions[:, 2],
-        )
-
-    @staticmethod
-    def _falls(r: robot.Sensors, ground: _Ground) -> np.ndarray:
-        """Which robots fell: pelvis too low above the ground or tilted too far."""
-        return (ground.base_height < FALL_HEIGHT) | (r.base_up[:, 2] < _COS_FALL_TILT)
 
 
 _FOOT_XY = np.array([0, 1, 3, 4])  # of a (left xyz, right xyz) row
@@ -410,5 +591,6 @@ _HIP_ROLL_YAW = np.array([0, 1, 6, 7])  # joints: left hip yaw, roll, right hip 
 
 def _yaw(heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cosine and sine (n, 1) each of each robot's yaw, from its heading vector (n, 3)."""
-    norm = np.hypot(heading[:, 0:1], heading[:, 1:2]) + 1e-9
+    xp = namespace(heading)
+    norm = xp.hypot(heading[:, 0:1], heading[:, 1:2]) + 1e-9
     return heading[:, 0:1] / norm, heading[:, 1:2] / norm

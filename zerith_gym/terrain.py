@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from zerith_gym.arrays import namespace
+
 TERRAIN_KINDS = ("plane", "uneven")
 
 
@@ -83,17 +85,21 @@ class Terrain:
         )
 
     def height_at(self, xy: np.ndarray) -> np.ndarray:
-        """Ground height (m) under points `xy` (..., 2): bilinear interpolation of the height field."""
+        """Ground height (m) under points `xy` (..., 2): bilinear interpolation of the height field.
+
+        Numpy or JAX arrays (the MJX backend traces this with jax.numpy).
+        """
+        xp = namespace(xy)
         if self.is_plane:
-            return np.zeros(xy.shape[:-1])
+            return xp.zeros(xy.shape[:-1])
         res, half = self.spec.resolution, self.spec.half_size
         last = self.heights.shape[0] - 1
-        u = np.clip((xy[..., 0] + half) / res, 0.0, last)
-        v = np.clip((xy[..., 1] + half) / res, 0.0, last)
-        c0 = np.minimum(u.astype(int), last - 1)
-        r0 = np.minimum(v.astype(int), last - 1)
+        u = xp.clip((xy[..., 0] + half) / res, 0.0, last)
+        v = xp.clip((xy[..., 1] + half) / res, 0.0, last)
+        c0 = xp.minimum(u.astype(int), last - 1)
+        r0 = xp.minimum(v.astype(int), last - 1)
         fu, fv = u - c0, v - r0
-        h = self.heights
+        h = self.heights if xp is np else xp.asarray(self.heights, dtype=xy.dtype)
         return (1 - fv) * ((1 - fu) * h[r0, c0] + fu * h[r0, c0 + 1]) + fv * (
             (1 - fu) * h[r0 + 1, c0] + fu * h[r0 + 1, c0 + 1]
         )

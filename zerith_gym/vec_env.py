@@ -47,6 +47,10 @@ from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.workers import WorkerPool, default_workers
 
+BACKENDS = ("cpu", "mjx")
+"""Where the robots are simulated: "cpu" (MuJoCo, one model per robot, worker processes) or "mjx"
+(MuJoCo MJX on JAX's default device, a GPU where there is one: `pip install "sb3-huri[mjx]"`)."""
+
 
 class ZerithVecEnv(VecEnv):
     """`num_envs` Zerith1-v0 robots stepped together; `options` are those of `ZerithOptions`.
@@ -57,6 +61,11 @@ class ZerithVecEnv(VecEnv):
     or 0 where that gives one slice (`default_workers`). `physics_threads`: threads stepping the physics
     of the robots of one process (MuJoCo releases the GIL in `mj_step`; the task logic stays on one).
     The transitions are the same for any number of workers and threads (tested).
+
+    `backend="mjx"` simulates the robots with MuJoCo MJX on JAX's default device (`zerith_gym.mjx`,
+    docs/gpu.md): the same task code, one jitted step for all robots; `solver_iterations` and
+    `ls_iterations` override the MJCF's constraint solver iterations (100 / 50) there. Its randomness
+    comes from one JAX key seeded by `seed`, so its episodes differ from the CPU backend's draws.
     Rendering is not supported (use the single env for videos).
     """
 
@@ -64,20 +73,35 @@ class ZerithVecEnv(VecEnv):
         self,
         num_envs: int,
         *,
+        backend: str = "cpu",
         workers: int | None = None,
         physics_threads: int = 1,
+        solver_iterations: int | None = None,
+        ls_iterations: int | None = None,
         **options: Any,
     ) -> None:
         self.options = ZerithOptions.from_kwargs(options, "ZerithVecEnv")
         if not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"the number of robots must be a positive integer, got {num_envs!r}")
-        self.workers = default_workers(num_envs) if workers is None else workers
-        if self.workers:
-            self.robots: ZerithBatch | WorkerPool = WorkerPool(
-                num_envs, self.options, self.workers, physics_threads
-            )
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
+        self.backend = backend
+        self.robots: ZerithBatch | WorkerPool | Any
+        if backend == "mjx":
+            if workers or physics_threads != 1:
+                raise ValueError("workers and physics_threads are options of the cpu backend, not of mjx")
+            from zerith_gym.mjx import MjxBatch, SolverSettings
+
+            self.workers = 0
+            self.robots = MjxBatch(num_envs, self.options, SolverSettings(solver_iterations, ls_iterations))
+        elif solver_iterations is not None or ls_iterations is not None:
+            raise ValueError("solver_iterations and ls_iterations are options of the mjx backend")
         else:
-            self.robots = ZerithBatch(num_envs, self.options, physics_threads)
+            self.workers = default_workers(num_envs) if workers is None else workers
+            if self.workers:
+                self.robots = WorkerPool(num_envs, self.options, self.workers, physics_threads)
+            else:
+                self.robots = ZerithBatch(num_envs, self.options, physics_threads)
         self.scenario = self.options.resolved_scenario
         self.obs_mode = self.options.obs_mode
         self.render_mode = None
@@ -187,7 +211,8 @@ def make_vec_env(n_envs: int, seed: int | None = None, **env_kwargs: Any) -> Zer
     """A `ZerithVecEnv` of `n_envs` robots; robot i is seeded with `seed + i` at the first reset.
 
     `env_kwargs` are the options of `ZerithOptions` (scenario, obs_mode, command, reward_weights,
-    terrain_seed, episode_steps) and `workers`, `physics_threads` (see `ZerithVecEnv`).
+    terrain_seed, episode_steps), `backend` ("cpu" or "mjx"), and the backend's own: `workers`,
+    `physics_threads` (cpu), `solver_iterations`, `ls_iterations` (mjx); see `ZerithVecEnv`.
     """
     env = ZerithVecEnv(n_envs, **env_kwargs)
     if seed is not None:

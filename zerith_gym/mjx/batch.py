@@ -1,0 +1,265 @@
+"""n Zerith-1 robots on MJX: the task state as a JAX pytree, and jitted reset and step functions.
+
+The task is the CPU backend's: `reset_values`, `step_disturbances`, `action_targets`, `evaluate`,
+`step_output` and `observations` from `zerith_gym.task`, the domain fields from
+`zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
+needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
+key split every step (not one numpy generator per robot), and robots whose episode ended are reset
+inside the same jitted step (every robot's reset is computed and selected where an episode ended).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from mujoco import mjx
+
+from zerith_gym import robot
+from zerith_gym.batch import BatchStep, ZerithOptions, check_scenario_change
+from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
+from zerith_gym.physics import domain_model_fields
+from zerith_gym.randomization import DomainParams
+from zerith_gym.rewards import resolve_reward_weights
+from zerith_gym.scenarios import Scenario
+from zerith_gym.task import (
+    GAIT_TABLE,
+    RESET_DRAWS,
+    STEP_DRAWS,
+    ScenarioArrays,
+    StepOutput,
+    TaskConstants,
+    action_targets,
+    evaluate,
+    ground,
+    observation_noise,
+    observations,
+    reset_values,
+    scenario_arrays,
+    step_disturbances,
+    step_output,
+    task_constants,
+)
+from zerith_gym.terrain import Terrain
+
+
+class MjxState(NamedTuple):
+    """Physics and task state of n robots (leading axis n), on the device."""
+
+    data: mjx.Data
+    fields: dict[str, jax.Array]  # the randomized model fields of each robot
+    key: jax.Array
+    step_count: jax.Array  # (n,) control steps into the episode
+    gait_step: jax.Array  # (n,) control steps into the gait cycle
+    command: jax.Array  # (n, 3)
+    actions: jax.Array  # (n, 3, 12) a_t, a_{t-1}, a_{t-2}
+    joint_vel: jax.Array  # (n, 12) at the last observation
+    force: jax.Array  # (n, 3)
+    domain_vector: jax.Array  # (n, DOMAIN_VECTOR_SIZE)
+    lags: jax.Array  # (n, DECIMATION)
+    policy_obs: jax.Array  # (n, POLICY_SIZE)
+    critic_obs: jax.Array  # (n, CRITIC_SIZE)
+
+
+class MjxStep(NamedTuple):
+    """One control step of n robots, with the robots whose episode ended already reset (cf. BatchStep)."""
+
+    out: StepOutput  # the step; its observations are the terminal ones of the robots that ended
+    force: jax.Array  # (n, 3) external force during the step
+    command: jax.Array  # (n, 3) command during the step
+    policy_obs: jax.Array  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
+    critic_obs: jax.Array  # (n, CRITIC_SIZE)
+    next_command: jax.Array  # (n, 3)
+
+
+class MjxBatch:
+    """`num_robots` robots on MJX in one scenario, behind `zerith_gym.batch.ZerithBatch`'s interface.
+
+    Reset and step are jitted functions of the state (one compile each, at the first call); numpy arrays
+    come in and go out, so `ZerithVecEnv` drives either backend.
+    """
+
+    def __init__(self, num_robots: int, options: ZerithOptions, solver: SolverSettings | None = None) -> None:
+        if not isinstance(num_robots, int | np.integer) or num_robots < 1:
+            raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
+        self.num_robots = int(num_robots)
+        self.options = options
+        self.scenario = options.resolved_scenario
+        self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
+        self.physics = MjxPhysics(self.terrain, self.scenario.force.target, solver)
+        model = self.physics.model
+        self.sensors = robot.Sensors.layout(model)
+        self.constants: TaskConstants = task_constants(
+            self.terrain,
+            np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
+            resolve_reward_weights(options.reward_weights),
+            int(options.episode_steps),
+        )
+        self.set_scenario(self.scenario)
+        self._reset = jax.jit(self._start)
+        self._step = jax.jit(self._step_all)
+        self.state: MjxState | None = None
+        self._seed: int | None = None
+
+    def set_scenario(self, scenario: Scenario) -> None:
+        """Follow `scenario` from now on (the arrays change, the compiled functions stay)."""
+        check_scenario_change(self.scenario, scenario)
+        self.scenario = scenario
+        arrays = scenario_arrays(scenario, self.options.fixed_command(scenario), self.constants.episode_steps)
+        self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
+
+    # --------------------------------------------- the interface of zerith_gym.batch.ZerithBatch (numpy)
+    def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
+        """Seed the next reset: the JAX key is drawn from the generator of the lowest robot index given."""
+        if seeds:
+            self._seed = int(seeds[min(seeds)].integers(2**63))
+
+    def reset(
+        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Start new episodes of every robot (`ids` must be all of them); `commands` fixes some robots'
+        commands for the episode. Returns their policy and critic observations."""
+        if sorted(np.asarray(ids).tolist()) != list(range(self.num_robots)):
+            raise ValueError(
+                "the MJX backend resets all robots together (ended episodes restart by themselves)"
+            )
+        overrides = np.full((self.num_robots, 3), np.nan)
+        for i, command in (commands or {}).items():
+            overrides[i] = command
+        seed = self._seed if self._seed is not None else int(np.random.default_rng().integers(2**63))
+        self._seed = None
+        self.state = self._reset(jax.random.key(seed), self.arrays, jnp.asarray(overrides, _real()))
+        return np.asarray(self.state.policy_obs), np.asarray(self.state.critic_obs)
+
+    @property
+    def commands(self) -> np.ndarray:
+        """The current command of every robot, (n, 3)."""
+        if self.state is None:
+            raise RuntimeError("reset the robots first")
+        return np.asarray(self.state.command, dtype=float)
+
+    def step(self, actions: np.ndarray, autoreset: bool = True) -> BatchStep:
+        """One control step of every robot with checked actions (n, 12) in [-1, 1]; robots whose episode
+        ended restart (always: the MJX backend has no `autoreset=False`)."""
+        if self.state is None:
+            raise RuntimeError("reset the robots before stepping them")
+        if not autoreset:
+            raise ValueError("the MJX backend always resets ended episodes inside its step")
+        self.state, step = self._step(self.state, jnp.asarray(actions, _real()), self.arrays)
+        step = jax.device_get(step)
+        out = StepOutput(*(np.asarray(value) for value in step.out))
+        return BatchStep(
+            out._replace(reward=out.reward.astype(float), terms=out.terms.astype(float)),
+            np.asarray(step.force, dtype=float),
+            np.asarray(step.command, dtype=float),
+            step.policy_obs,
+            step.critic_obs,
+            np.asarray(step.next_command, dtype=float),
+        )
+
+    def close(self) -> None:
+        """Nothing to stop: the device memory goes with the object."""
+
+    # ------------------------------------------------------------------------- traced functions
+    def _start(self, key: jax.Array, sc: ScenarioArrays, overrides: jax.Array) -> MjxState:
+        """Fresh episodes of every robot, drawn from `key` (commands fixed where `overrides` is finite)."""
+        n = self.num_robots
+        draw, key = jax.random.split(key)
+        start = reset_values(jax.random.uniform(draw, (n, RESET_DRAWS)), sc, self.terrain.spec)
+        command = jnp.where(jnp.isfinite(overrides), overrides, start.command)
+        fields = domain_model_fields(self.physics.nominal, DomainParams.from_vector(start.domain_vector))
+        data = jax.vmap(self.physics.reset)(fields, start.qpos)
+        readings = self.sensors.read(jax.vmap(self.physics.sensordata)(data))
+        zeros = jnp.zeros_like
+        actions = jnp.zeros((n, 3, robot.NUM_JOINTS))
+        force = zeros(command)
+        policy, critic = observations(
+            readings,
+            ground(readings, self.terrain),
+            jnp.broadcast_to(jnp.asarray(GAIT_TABLE[0], _real()), (n, GAIT_TABLE.shape[1])),
+            command,
+            actions[:, 0],
+            force,
+            start.domain_vector,
+            observation_noise(start.noise_uniforms, sc),
+        )
+        return MjxState(
+            data=data,
+            fields=fields,
+            key=key,
+            step_count=jnp.zeros(n, jnp.int32),
+            gait_step=jnp.zeros(n, jnp.int32),
+            command=command,
+            actions=actions,
+            joint_vel=readings.joint_vel,
+            force=force,
+            domain_vector=start.domain_vector,
+            lags=start.lags.astype(jnp.int32),
+            policy_obs=policy,
+            critic_obs=critic,
+        )
+
+    def _step_all(self, state: MjxState, actions: jax.Array, sc: ScenarioArrays) -> tuple[MjxState, MjxStep]:
+        n = self.num_robots
+        key, draw, restart = jax.random.split(state.key, 3)
+        u = jax.random.uniform(draw, (n, STEP_DRAWS))
+        history = jnp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
+        drawn = step_disturbances(u, sc.due[state.step_count], state.force, state.command, sc)
+        data, unstable = jax.vmap(self.physics.control_step)(
+            state.fields, state.data, action_targets(history), state.lags, drawn.force, drawn.kicks
+        )
+        sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
+        readings = self.sensors.read(sensordata)
+        step_count = state.step_count + 1
+        gait_step = (state.gait_step + 1) % len(GAIT_TABLE)
+        e = evaluate(
+            readings,
+            gait_step,
+            drawn.command,
+            history,
+            state.joint_vel,
+            drawn.force,
+            state.domain_vector,
+            observation_noise(u, sc),
+            self.constants,
+        )
+        out = step_output(
+            e, unstable, step_count, self.constants.episode_steps, state.policy_obs, state.critic_obs
+        )
+        stepped = MjxState(
+            data=data,
+            fields=state.fields,
+            key=key,
+            step_count=step_count,
+            gait_step=gait_step,
+            command=drawn.command,
+            actions=history,
+            joint_vel=readings.joint_vel,
+            force=drawn.force,
+            domain_vector=state.domain_vector,
+            lags=state.lags,
+            policy_obs=out.policy_obs,
+            critic_obs=out.critic_obs,
+        )
+        fresh = self._start(restart, sc, jnp.full((n, 3), jnp.nan))
+        ended = out.terminated | out.truncated
+        new = jax.tree.map(lambda a, b: _select_rows(ended, a, b), fresh, stepped)
+        new = new._replace(key=key)
+        step = MjxStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command)
+        return new, step
+
+
+def _real() -> np.dtype:
+    """JAX's float type: float32, or float64 with `jax_enable_x64`."""
+    return jax.dtypes.canonicalize_dtype(np.float64)
+
+
+def _select_rows(rows: jax.Array, where_true: jax.Array, where_false: jax.Array) -> jax.Array:
+    """Row i of `where_true` where rows[i], else of `where_false` (any trailing shape)."""
+    if where_true.ndim == 0:
+        return where_false
+    mask = rows.reshape(rows.shape + (1,) * (where_true.ndim - 1))
+    return jnp.where(mask, where_true, where_false)
