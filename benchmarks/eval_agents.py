@@ -3,6 +3,7 @@
     python benchmarks/eval_agents.py                                   # the shipped agents, all scenarios
     python benchmarks/eval_agents.py --agents logs/huri/Zerith1-v0_3 --cases nominal@0.5 nominal@1.0
     python benchmarks/eval_agents.py --episodes 50 --seed 1 --json results.json
+    python benchmarks/eval_agents.py --backend mjx --solver-iterations 4 --ls-iterations 8  # on MJX
 
 An agent is a run folder in RL Zoo's layout (`Zerith1-v0.zip`, `Zerith1-v0/vecnormalize.pkl`). A case is
 `scenario@vx` (command (vx, 0, 0)) or a scenario alone (its own command: (1, 0, 0) for the paper's test
@@ -73,9 +74,17 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--json", type=Path, default=None, help="also write the results here")
+    parser.add_argument("--backend", choices=("cpu", "mjx"), default="cpu", help="the env's simulator")
+    parser.add_argument(
+        "--solver-iterations", type=int, default=None, help="mjx: constraint solver iterations"
+    )
+    parser.add_argument("--ls-iterations", type=int, default=None, help="mjx: line-search iterations")
     args = parser.parse_args()
     th.set_num_threads(1)
     cases = [(case, *parse_case(case)) for case in args.cases]
+    backend: dict[str, object] = {"backend": args.backend}
+    if args.backend == "mjx":
+        backend |= {"solver_iterations": args.solver_iterations, "ls_iterations": args.ls_iterations}
 
     results: list[CaseResult] = []
     columns = ("survive", "vx_err", "vx", "lin_err", "yaw_err", "steps/s", "alt", "1-supp")
@@ -84,7 +93,9 @@ def main() -> None:
         model, normalizer = load_run(folder, ENV_ID)
         agent = f"{folder.parent.name}/{folder.name}"
         for case, scenario, command in cases:
-            metrics = evaluate(model, normalizer, scenario, command, args.episodes, args.seed)
+            metrics = evaluate(
+                model, normalizer, scenario, command, args.episodes, args.seed, backend_options=backend
+            )
             results.append(CaseResult(agent, case, args.episodes, **metrics))
             print(f"{agent:<28} {case:<22} " + " ".join(f"{v:>7.3f}" for v in metrics.values()), flush=True)
     if args.json is not None:

@@ -8,3 +8,9 @@ import torch
 
 # Tests run in parallel workers on small machines: one intra-op thread each avoids oversubscription.
 torch.set_num_threads(1)
+
+# JAX (the MJX backend's tests) compiles the env's step once per shape: keep the compiled programs
+# on disk for this run, so that subprocesses (the RL Zoo test) reuse them.
+os.environ.setdefault(
+    "JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".pytest_jax_cache")
+)

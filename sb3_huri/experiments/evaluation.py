@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import os
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -131,6 +132,7 @@ def evaluate(
     episode_steps: int | None = None,
     workers: int | None = None,
     risk: bool = False,
+    backend_options: Mapping[str, Any] | None = None,
 ) -> dict[str, float]:
     """Run one episode on each of ``episodes`` robots and summarize them (see the module docstring).
 
@@ -138,13 +140,14 @@ def evaluate(
     ``episode_steps``: the time limit (default: the env's, 20 s); ``workers``: processes stepping the
     robots (``zerith_gym.make_vec_env``; default one per core). With ``risk`` the result also holds
     ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``.
+    ``backend_options``: more ``make_vec_env`` arguments, e.g. ``{"backend": "mjx", "solver_iterations": 4}``.
     """
     import zerith_gym
 
     options: dict[str, Any] = {"scenario": scenario, "command": command}
     if episode_steps is not None:
         options["episode_steps"] = episode_steps
-    env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options)
+    env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options, **(backend_options or {}))
     try:
         return _rollout(model, normalizer, env, episodes, risk)
     finally:

@@ -5,7 +5,7 @@ The task is the CPU backend's: `reset_values`, `step_disturbances`, `action_targ
 `zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
 needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
 key split every step (not one numpy generator per robot), and robots whose episode ended are reset
-inside the same jitted step (every robot's reset is computed and selected where an episode ended).
+inside the same jitted step (when any did, every robot's reset is computed and selected where one did).
 """
 
 from __future__ import annotations
@@ -244,10 +244,14 @@ class MjxBatch:
             policy_obs=out.policy_obs,
             critic_obs=out.critic_obs,
         )
-        fresh = self._start(restart, sc, jnp.full((n, 3), jnp.nan))
         ended = out.terminated | out.truncated
-        new = jax.tree.map(lambda a, b: _select_rows(ended, a, b), fresh, stepped)
-        new = new._replace(key=key)
+
+        def restart_ended(stepped: MjxState) -> MjxState:
+            fresh = self._start(restart, sc, jnp.full((n, 3), jnp.nan))
+            return jax.tree.map(lambda a, b: _select_rows(ended, a, b), fresh, stepped)._replace(key=key)
+
+        # Every robot's reset is computed and selected where an episode ended, when one did.
+        new = jax.lax.cond(ended.any(), restart_ended, lambda stepped: stepped, stepped)
         step = MjxStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command)
         return new, step
 

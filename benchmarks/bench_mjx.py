@@ -1,0 +1,164 @@
+"""Zerith-1 on MJX: raw physics, the env, and HuRiPPO against SB3 PPO, on JAX's default device.
+
+Meant for a GPU machine (`pip install -e ".[mjx]"` and JAX's CUDA build); it also runs with JAX on the
+CPU, slowly, to check the pipeline. Printed, per number of robots:
+
+- `raw`: control steps/s of raw MJX physics of the env's own model (4 sub-steps, `jax.vmap` + `jit`, no
+  task), with the solver settings asked for;
+- `env`: env steps/s of `make_vec_env(n, backend="mjx")` under random actions: physics, the task, the
+  in-step resets and the numpy hand-off with SB3's info dicts;
+- `ppo`, `huri`: env steps/s of the whole training loop (collection and updates, after a warm-up
+  iteration) with the `Zerith1-v0` preset of `hyperparams/huri.yml` (`--nets` overrides its networks, the
+  paper's [512, 256, 128] by default), the policy on torch's CUDA device where there is one;
+  `huri/ppo`: HuRiPPO's wall time per env step relative to SB3 PPO's.
+
+With `--profile`, a torch profiler table of one HuRiPPO update (energy distance, sorting, RND) follows.
+
+    python benchmarks/bench_mjx.py --num-envs 4096 16384 --iterations 3
+    python benchmarks/bench_mjx.py --num-envs 16384 --solver 4 8 --profile
+    python benchmarks/bench_mjx.py --num-envs 64 --iterations 1 --skip-training     # JAX on the CPU
+
+Set `XLA_PYTHON_CLIENT_PREALLOCATE=false` when torch shares the GPU with JAX (the script does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.vec_env import VecNormalize
+
+import zerith_gym
+from sb3_huri import HuRiPPO
+from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from zerith_gym import robot
+from zerith_gym.mjx import MjxPhysics, SolverSettings
+from zerith_gym.physics import RANDOMIZED_FIELDS
+from zerith_gym.terrain import PLANE, Terrain
+
+ENV_ID = "Zerith1-v0"
+
+
+def raw_rate(num_envs: int, solver: SolverSettings, steps: int) -> float:
+    """Control steps/s of raw MJX physics: every robot standing, default joint targets, no task."""
+    physics = MjxPhysics(Terrain(PLANE), "centroid", solver)
+    model = physics.model
+    fields = {  # the nominal model's fields, batched as the env batches them
+        name: jnp.broadcast_to(jnp.asarray(getattr(model, name)), (num_envs, *getattr(model, name).shape))
+        for name in RANDOMIZED_FIELDS
+    }
+    qpos = jnp.broadcast_to(jnp.asarray(np.r_[0, 0, 0, 1, 0, 0, 0, robot.DEFAULT_JOINT_POS]), (num_envs, 19))
+    data = jax.jit(jax.vmap(physics.reset))(fields, qpos)
+    targets = jnp.broadcast_to(jnp.asarray(robot.DEFAULT_JOINT_POS), (num_envs, 3, 12))
+    lags = jnp.zeros((num_envs, robot.DECIMATION), jnp.int32)
+    zeros3, zeros2 = jnp.zeros((num_envs, 3)), jnp.zeros((num_envs, 2))
+    step = jax.jit(jax.vmap(physics.control_step))
+    data, _ = step(fields, data, targets, lags, zeros3, zeros2)  # compile
+    jax.block_until_ready(data)
+    start = time.perf_counter()
+    for _ in range(steps):
+        data, _ = step(fields, data, targets, lags, zeros3, zeros2)
+    jax.block_until_ready(data)
+    return steps * num_envs / (time.perf_counter() - start)
+
+
+def env_rate(num_envs: int, solver: SolverSettings, steps: int, env_kwargs: dict) -> float:
+    """Env steps/s of the MJX VecEnv under random actions (after the compiling first step)."""
+    env = zerith_gym.make_vec_env(
+        num_envs, seed=0, backend="mjx", solver_iterations=solver.iterations,
+        ls_iterations=solver.ls_iterations, **env_kwargs,
+    )  # fmt: skip
+    env.reset()
+    actions = np.random.default_rng(0).uniform(-0.3, 0.3, (steps + 1, num_envs, 12))
+    env.step(actions[0])
+    start = time.perf_counter()
+    for t in range(steps):
+        env.step(actions[t + 1])
+    rate = steps * num_envs / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def build(algo: str, preset: dict, env, net: list[int], device: str):
+    kwargs = algorithm_kwargs(preset)
+    kwargs["policy_kwargs"] = dict(kwargs.get("policy_kwargs") or {}, net_arch=net)
+    if algo == "ppo":
+        kwargs["batch_size"] = env.num_envs * kwargs["n_steps"] // kwargs.pop("n_minibatches")
+        for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef"):
+            kwargs.pop(name, None)
+        return PPO("MultiInputPolicy", env, seed=0, device=device, **kwargs)
+    return HuRiPPO("MultiInputPolicy", env, seed=0, device=device, **kwargs)
+
+
+def train_rate(algo: str, preset: dict, env, net: list[int], iterations: int, device: str) -> float:
+    """Env steps/s of `iterations` training iterations after a warm-up one."""
+    model = build(algo, preset, env, net, device)
+    per_iteration = env.num_envs * model.n_steps
+    model.learn(per_iteration)
+    start = time.perf_counter()
+    model.learn(iterations * per_iteration, reset_num_timesteps=False)
+    return iterations * per_iteration / (time.perf_counter() - start), model
+
+
+def profile_update(model) -> str:
+    """A torch profiler table of one HuRiPPO update on the last rollout."""
+    from torch.profiler import ProfilerActivity, profile
+
+    activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if torch.cuda.is_available() else [])
+    with profile(activities=activities) as prof:
+        model.train()
+        if torch.cuda.is_available():
+            torch.cuda.synchronize()
+    sort = "cuda_time_total" if torch.cuda.is_available() else "cpu_time_total"
+    return prof.key_averages().table(sort_by=sort, row_limit=20)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--num-envs", type=int, nargs="+", default=[4096, 16384])
+    parser.add_argument("--solver", type=int, nargs=2, default=None, metavar=("ITERATIONS", "LS_ITERATIONS"))
+    parser.add_argument("--iterations", type=int, default=3, help="timed training iterations")
+    parser.add_argument("--steps", type=int, default=20, help="timed steps of raw physics and of the env")
+    parser.add_argument("--nets", type=int, nargs="+", default=[512, 256, 128])
+    parser.add_argument("--skip-training", action="store_true")
+    parser.add_argument("--profile", action="store_true", help="profile one HuRiPPO update")
+    args = parser.parse_args()
+    solver = SolverSettings(*(args.solver or (None, None)))
+    device = "cuda" if torch.cuda.is_available() else "cpu"
+    preset = read_preset(ENV_ID)
+    env_kwargs = dict(preset.get("env_kwargs") or {})
+    print(f"JAX device: {jax.devices()[0]}, torch device: {device}, solver {args.solver or 'of the MJCF'}")
+    print(f"{'robots':>7} {'raw':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
+    for n in args.num_envs:
+        raw = raw_rate(n, solver, args.steps)
+        env = env_rate(n, solver, args.steps, env_kwargs)
+        row = f"{n:>7} {raw:>9.0f} {env:>9.0f}"
+        if not args.skip_training:
+            venv = VecNormalize(
+                zerith_gym.make_vec_env(
+                    n, seed=0, backend="mjx", solver_iterations=solver.iterations,
+                    ls_iterations=solver.ls_iterations, **env_kwargs,
+                ),
+                gamma=preset.get("gamma", 0.99), **(normalize_kwargs(preset) or {}),
+            )  # fmt: skip
+            ppo, _ = train_rate("ppo", preset, venv, args.nets, args.iterations, device)
+            huri, model = train_rate("huri", preset, venv, args.nets, args.iterations, device)
+            row += f" {ppo:>9.0f} {huri:>9.0f} {ppo / huri:>9.2f}"
+            if args.profile:
+                print(profile_update(model))
+            venv.close()
+        print(row, flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,250 @@
+"""The MJX backend (`make_vec_env(n, backend="mjx")`) against the CPU backend, with JAX on the CPU.
+
+The task code is shared (zerith_gym.task over numpy or jax.numpy), so these tests hold the two backends
+to each other: the task functions on the same inputs, the physics from the same start, the randomized
+parameters' distributions, and the training pipelines (SB3 PPO, HuRiPPO, RL Zoo) on the MJX env.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy import stats
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("mujoco.mjx")
+import jax.numpy as jnp  # noqa: E402
+
+import zerith_gym  # noqa: E402
+from zerith_gym import robot  # noqa: E402
+from zerith_gym.observations import CRITIC_LAYOUT, layout_slices  # noqa: E402
+from zerith_gym.physics import NominalModel, build_model, domain_model_fields  # noqa: E402
+from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams  # noqa: E402
+from zerith_gym.scenarios import SCENARIOS  # noqa: E402
+from zerith_gym.task import (  # noqa: E402
+    RESET_DRAWS,
+    STEP_DRAWS,
+    evaluate,
+    reset_values,
+    scenario_arrays,
+    step_disturbances,
+    task_constants,
+)
+from zerith_gym.terrain import Terrain  # noqa: E402
+
+COMMAND = (0.5, 0.0, 0.0)
+
+
+def _to_jax(tree):
+    return jax.tree.map(lambda x: jnp.asarray(x) if isinstance(x, np.ndarray) else x, tree)
+
+
+def _assert_tree_close(numpy_tree, jax_tree, rtol=2e-5, atol=2e-5):
+    for a, b in zip(jax.tree.leaves(numpy_tree), jax.tree.leaves(jax_tree), strict=True):
+        np.testing.assert_allclose(
+            np.asarray(b, dtype=float), np.asarray(a, dtype=float), rtol=rtol, atol=atol
+        )
+
+
+@pytest.mark.parametrize("scenario", ["train", "uneven"])
+def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
+    """One definition of the task: the same functions on numpy (float64) and traced by jax (float32)."""
+    rng = np.random.default_rng(0)
+    n, sc = 16, SCENARIOS[scenario]
+    terrain = Terrain(sc.terrain)
+    model = build_model(terrain)
+    arrays = scenario_arrays(sc, None, 1000)
+    reset_u, step_u = rng.random((n, RESET_DRAWS)), rng.random((n, STEP_DRAWS))
+    jitted_reset = jax.jit(lambda u, a: reset_values(u, a, terrain.spec))
+    _assert_tree_close(
+        reset_values(reset_u, arrays, terrain.spec), jitted_reset(_to_jax(reset_u), _to_jax(arrays))
+    )
+
+    due = rng.random((n, 4)) < 0.5
+    force, command = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    args = (step_u, due, force, command, arrays)
+    _assert_tree_close(step_disturbances(*args), jax.jit(step_disturbances)(*_to_jax(args)))
+
+    vector = reset_values(reset_u, arrays, terrain.spec).domain_vector
+    nominal = NominalModel.capture(model, terrain)
+
+    def fields(vector):
+        return domain_model_fields(nominal, DomainParams.from_vector(vector))
+
+    _assert_tree_close(fields(vector), jax.jit(fields)(jnp.asarray(vector)))
+
+    # Sensor readings of robots standing on the terrain, with noise on every quantity.
+    layout = robot.Sensors.layout(model)
+    sensordata = rng.normal(scale=0.3, size=(n, model.nsensordata))
+    sensordata[:, layout.base_pos] += np.array([*sc.terrain.spawn_xy, 0.75])
+    sensordata[:, layout.foot_pos] += np.tile([*sc.terrain.spawn_xy, 0.0], 2)
+    sensordata[:, layout.foot_force] *= 100.0
+    constants = task_constants(
+        terrain, np.array([model.joint(j).range for j in robot.JOINT_NAMES]), np.ones(22), 1000
+    )
+    inputs = (
+        rng.integers(0, 35, n),
+        command,
+        rng.uniform(-1, 1, (n, 3, 12)),
+        rng.normal(size=(n, 12)),
+        force,
+        rng.normal(size=(n, DOMAIN_VECTOR_SIZE)),
+        rng.normal(scale=0.1, size=(n, 46)),
+    )
+
+    def judged(sensordata, *inputs):
+        return evaluate(layout.read(sensordata), *inputs, constants)
+
+    _assert_tree_close(
+        judged(sensordata, *inputs), jax.jit(judged)(*_to_jax((sensordata, *inputs))), rtol=1e-4, atol=1e-4
+    )
+
+
+@pytest.fixture(scope="module")
+def nominal_pair():
+    kwargs = dict(scenario="nominal", command=COMMAND, episode_steps=200)
+    cpu = zerith_gym.make_vec_env(2, seed=0, backend="cpu", workers=0, **kwargs)
+    mjx = zerith_gym.make_vec_env(2, seed=0, backend="mjx", **kwargs)
+    yield cpu, mjx
+    cpu.close()
+    mjx.close()
+
+
+def test_mjx_follows_the_cpu_backend_from_the_same_start(nominal_pair):
+    """Nominal, fixed command, both robots standing (zero actions) for 40 steps while the gait clock runs.
+
+    Tolerances (measured worst cases x ~5): policy observations 5e-3, rewards 5e-4, critic observations
+    5e-3 apart from the contact forces (0.25 N of about 200 N). With moving legs the trajectories part at
+    touchdowns: MJX's box-plane collision keeps the corners within 1 mm of the deepest one, MuJoCo's C
+    collision every penetrating corner (docs/gpu.md).
+    """
+    cpu, mjx = nominal_pair
+    obs_cpu, obs_mjx = cpu.reset(), mjx.reset()
+    np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=1e-5)
+    forces = np.r_[layout_slices(CRITIC_LAYOUT)["foot_contact_force"]]
+    others = np.setdiff1d(np.arange(obs_cpu["critic"].shape[1]), forces)
+    actions = np.zeros((2, 12))
+    for _ in range(40):
+        obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
+        obs_mjx, reward_mjx, done_mjx, info_mjx = mjx.step(actions)
+        np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=5e-3)
+        np.testing.assert_allclose(obs_mjx["critic"][:, others], obs_cpu["critic"][:, others], atol=5e-3)
+        np.testing.assert_allclose(obs_mjx["critic"][:, forces], obs_cpu["critic"][:, forces], atol=0.25)
+        np.testing.assert_allclose(reward_mjx, reward_cpu, atol=5e-4)
+        assert not done_cpu.any() and not done_mjx.any()
+    assert set(info_mjx[0]) == set(_cpu_infos(cpu, actions)[0])
+    terms = np.array(list(info_mjx[0]["reward_terms"].values()))
+    assert terms.sum() == pytest.approx(reward_mjx[0], abs=1e-5)
+
+
+def _cpu_infos(cpu, actions):
+    return cpu.step(actions)[3]
+
+
+def test_mjx_episodes_end_and_restart_inside_the_step():
+    """Falls terminate, the time limit truncates, terminal observations and Monitor episode info come out."""
+    env = zerith_gym.make_vec_env(
+        2, seed=1, backend="mjx", scenario="nominal", command=COMMAND, episode_steps=12
+    )
+    env.reset()
+    rng = np.random.default_rng(0)
+    ended = []
+    for t in range(24):
+        obs, _, dones, infos = env.step(rng.uniform(-1, 1, (2, 12)))
+        for i in np.flatnonzero(dones):
+            info = infos[i]
+            ended.append((t, info["TimeLimit.truncated"], info["episode"]["l"]))
+            assert info["terminal_observation"]["policy"].shape == (46,)
+            assert not np.array_equal(info["terminal_observation"]["policy"], obs["policy"][i])
+            assert np.all(obs["policy"][i][7:10] == np.float32(COMMAND))  # a new episode's command
+    assert ended, "no episode ended in 24 steps of 12-step episodes"
+    assert all(length <= 12 for _, _, length in ended)
+    assert any(truncated and length == 12 for _, truncated, length in ended)
+
+
+def test_mjx_randomizes_like_the_cpu_backend():
+    """Domain parameters, reset poses and commands of "train": same ranges and distributions (KS test)."""
+    mjx = zerith_gym.make_vec_env(128, backend="mjx", scenario="train")
+    cpu = zerith_gym.make_vec_env(256, seed=0, backend="cpu", workers=0, scenario="train")
+    cpu.reset()
+    samples_mjx = []
+    for seed in range(4):
+        mjx.seed(seed)
+        mjx.reset()
+        state = mjx.robots.state
+        samples_mjx.append(np.column_stack([state.domain_vector, state.command, state.data.qpos[:, 7:]]))
+        # The model fields of each robot are those its domain parameters give.
+        expected = domain_model_fields(
+            mjx.robots.physics.nominal, DomainParams.from_vector(np.asarray(state.domain_vector, float))
+        )
+        for name, values in expected.items():
+            np.testing.assert_allclose(np.asarray(state.fields[name]), values, rtol=1e-5, atol=1e-6)
+    task = cpu.robots.task
+    joints = np.array([d.qpos[7:] for d in cpu.robots.sim.datas])
+    samples_cpu = np.column_stack([task.domain_vector, task.command, joints])
+    samples_mjx = np.concatenate(samples_mjx)
+    low, high = scenario_arrays(SCENARIOS["train"], None, 1000)[1:3]
+    domain = samples_mjx[:, :DOMAIN_VECTOR_SIZE]
+    assert np.all(domain >= low - 1e-6) and np.all(domain <= high + 1e-6)
+    varying = np.flatnonzero(samples_cpu.std(axis=0) > 0)
+    p_values = [stats.ks_2samp(samples_cpu[:, k], samples_mjx[:, k]).pvalue for k in varying]
+    assert min(p_values) > 1e-3 / len(varying), f"a distribution differs (p = {min(p_values):.2g})"
+    cpu.close()
+
+
+@pytest.fixture(scope="module")
+def train_env():
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    env = VecNormalize(zerith_gym.make_vec_env(8, seed=0, backend="mjx", scenario="train"), gamma=0.99)
+    yield env
+    env.close()
+
+
+@pytest.mark.parametrize("algo", ["ppo", "huri"])
+def test_sb3_ppo_and_huri_train_on_mjx_unchanged(train_env, algo, tmp_path):
+    from stable_baselines3 import PPO
+
+    from sb3_huri import HuRiPPO
+
+    cls = PPO if algo == "ppo" else HuRiPPO
+    policy = "MultiInputPolicy" if algo == "ppo" else "MlpPolicy"
+    model = cls(policy, train_env, n_steps=16, batch_size=64, n_epochs=1, seed=0)
+    model.learn(256)
+    assert model.num_timesteps == 256
+    assert len(model.ep_info_buffer) >= 0 and np.isfinite(model.logger.name_to_value["train/loss"])
+    model.save(tmp_path / "model")
+    loaded = cls.load(tmp_path / "model", env=train_env)
+    obs = train_env.reset()
+    np.testing.assert_array_equal(
+        loaded.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]
+    )
+
+
+def test_rl_zoo_trains_on_mjx_through_env_kwargs(tmp_path):
+    command = [
+        sys.executable, "-m", "rl_zoo3.train", "--algo", "huri", "--env", "Zerith1-v0",
+        "-n", "128", "--seed", "0", "--eval-freq", "-1", "-f", str(tmp_path),
+        "--env-kwargs", "backend:'mjx'", "solver_iterations:4", "ls_iterations:8",
+        "--hyperparams", "n_envs:8", "n_steps:16", "batch_size:64", "n_epochs:1", "callback:None",
+    ]  # fmt: skip
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, env=os.environ.copy())
+    assert result.returncode == 0, result.stderr[-3000:]
+    run = tmp_path / "huri" / "Zerith1-v0_1"
+    assert (run / "Zerith1-v0.zip").exists()
+    assert "backend: mjx" in (run / "Zerith1-v0" / "args.yml").read_text()
+
+
+def test_bad_backend_options_get_clear_errors():
+    with pytest.raises(ValueError, match="unknown backend 'gpu'; valid backends: cpu, mjx"):
+        zerith_gym.make_vec_env(2, backend="gpu")
+    with pytest.raises(ValueError, match="options of the cpu backend"):
+        zerith_gym.make_vec_env(2, backend="mjx", workers=1)
+    with pytest.raises(ValueError, match="options of the mjx backend"):
+        zerith_gym.make_vec_env(2, backend="cpu", solver_iterations=4)
+    with pytest.raises(ValueError, match="solver iterations must be a positive integer"):
+        zerith_gym.make_vec_env(2, backend="mjx", solver_iterations=0)
