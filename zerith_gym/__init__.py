@@ -7,8 +7,9 @@ Importing the package registers `Zerith1-v0`:
 
     env = gym.make("Zerith1-v0", scenario="nominal", obs_mode="policy")
 
-`zerith_gym.make_vec_env(n, seed=...)` gives n robots in one process as a Stable-Baselines3 VecEnv
-(`ZerithVecEnv`); it is imported on first use, so importing the package does not import torch.
+`zerith_gym.make_vec_env(n, seed=...)` gives n robots as a Stable-Baselines3 VecEnv (`ZerithVecEnv`);
+it is imported on first use, so importing the package does not import torch. `backend="mjx"` simulates
+them with MuJoCo MJX on JAX's default device (`zerith_gym.mjx`, the optional `mjx` extra).
 """
 
 from typing import Any
