@@ -136,13 +136,9 @@ def test_mjx_follows_the_cpu_backend_from_the_same_start(nominal_pair):
         np.testing.assert_allclose(obs_mjx["critic"][:, forces], obs_cpu["critic"][:, forces], atol=0.25)
         np.testing.assert_allclose(reward_mjx, reward_cpu, atol=5e-4)
         assert not done_cpu.any() and not done_mjx.any()
-    assert set(info_mjx[0]) == set(_cpu_infos(cpu, actions)[0])
+    assert set(info_mjx[0]) == set(cpu.step(actions)[3][0])
     terms = np.array(list(info_mjx[0]["reward_terms"].values()))
     assert terms.sum() == pytest.approx(reward_mjx[0], abs=1e-5)
-
-
-def _cpu_infos(cpu, actions):
-    return cpu.step(actions)[3]
 
 
 def test_mjx_episodes_end_and_restart_inside_the_step():

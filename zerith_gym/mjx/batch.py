@@ -30,7 +30,6 @@ from zerith_gym.task import (
     RESET_DRAWS,
     STEP_DRAWS,
     ScenarioArrays,
-    StepOutput,
     TaskConstants,
     action_targets,
     evaluate,
@@ -62,17 +61,6 @@ class MjxState(NamedTuple):
     lags: jax.Array  # (n, DECIMATION)
     policy_obs: jax.Array  # (n, POLICY_SIZE)
     critic_obs: jax.Array  # (n, CRITIC_SIZE)
-
-
-class MjxStep(NamedTuple):
-    """One control step of n robots, with the robots whose episode ended already reset (cf. BatchStep)."""
-
-    out: StepOutput  # the step; its observations are the terminal ones of the robots that ended
-    force: jax.Array  # (n, 3) external force during the step
-    command: jax.Array  # (n, 3) command during the step
-    policy_obs: jax.Array  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
-    critic_obs: jax.Array  # (n, CRITIC_SIZE)
-    next_command: jax.Array  # (n, 3)
 
 
 class MjxBatch:
@@ -149,16 +137,10 @@ class MjxBatch:
         if not autoreset:
             raise ValueError("the MJX backend always resets ended episodes inside its step")
         self.state, step = self._step(self.state, jnp.asarray(actions, _real()), self.arrays)
-        step = jax.device_get(step)
-        out = StepOutput(*(np.asarray(value) for value in step.out))
-        return BatchStep(
-            out._replace(reward=out.reward.astype(float), terms=out.terms.astype(float)),
-            np.asarray(step.force, dtype=float),
-            np.asarray(step.command, dtype=float),
-            step.policy_obs,
-            step.critic_obs,
-            np.asarray(step.next_command, dtype=float),
-        )
+        step = jax.device_get(step)  # numpy arrays, in one transfer
+        out = step.out._replace(reward=step.out.reward.astype(float), terms=step.out.terms.astype(float))
+        as_float = {name: getattr(step, name).astype(float) for name in ("force", "command", "next_command")}
+        return step._replace(out=out, **as_float)
 
     def close(self) -> None:
         """Nothing to stop: the device memory goes with the object."""
@@ -173,9 +155,8 @@ class MjxBatch:
         fields = domain_model_fields(self.physics.nominal, DomainParams.from_vector(start.domain_vector))
         data = jax.vmap(self.physics.reset)(fields, start.qpos)
         readings = self.sensors.read(jax.vmap(self.physics.sensordata)(data))
-        zeros = jnp.zeros_like
         actions = jnp.zeros((n, 3, robot.NUM_JOINTS))
-        force = zeros(command)
+        force = jnp.zeros_like(command)
         policy, critic = observations(
             readings,
             ground(readings, self.terrain),
@@ -202,7 +183,9 @@ class MjxBatch:
             critic_obs=critic,
         )
 
-    def _step_all(self, state: MjxState, actions: jax.Array, sc: ScenarioArrays) -> tuple[MjxState, MjxStep]:
+    def _step_all(
+        self, state: MjxState, actions: jax.Array, sc: ScenarioArrays
+    ) -> tuple[MjxState, BatchStep]:
         n = self.num_robots
         key, draw, restart = jax.random.split(state.key, 3)
         u = jax.random.uniform(draw, (n, STEP_DRAWS))
@@ -229,9 +212,8 @@ class MjxBatch:
         out = step_output(
             e, unstable, step_count, self.constants.episode_steps, state.policy_obs, state.critic_obs
         )
-        stepped = MjxState(
+        stepped = state._replace(
             data=data,
-            fields=state.fields,
             key=key,
             step_count=step_count,
             gait_step=gait_step,
@@ -239,8 +221,6 @@ class MjxBatch:
             actions=history,
             joint_vel=readings.joint_vel,
             force=drawn.force,
-            domain_vector=state.domain_vector,
-            lags=state.lags,
             policy_obs=out.policy_obs,
             critic_obs=out.critic_obs,
         )
@@ -252,7 +232,7 @@ class MjxBatch:
 
         # Every robot's reset is computed and selected where an episode ended, when one did.
         new = jax.lax.cond(ended.any(), restart_ended, lambda stepped: stepped, stepped)
-        step = MjxStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command)
+        step = BatchStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command)
         return new, step
 
 
