@@ -209,8 +209,8 @@ class Physics:
 
     @staticmethod
     def training(model_timestep: float) -> Physics:
-        """The settings Zerith1-v0 trains with: the MJCF's 5 ms step, Newton, implicit-fast, pyramidal."""
-        return Physics(model_timestep, "newton", "implicitfast", "pyramidal")
+        """The settings Zerith1-v0 trains with: the MJCF's 5 ms step, Newton, Euler, pyramidal."""
+        return Physics(model_timestep, "newton", "euler", "pyramidal")
 
     def describe(self) -> str:
         text = (

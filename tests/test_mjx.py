@@ -114,31 +114,84 @@ def nominal_pair():
     mjx.close()
 
 
+FORCE_TOLERANCE = dict(atol=0.25, rtol=2e-3)
+"""Contact forces: 0.25 N, or 0.2% of the force at a touchdown's impact (hundreds of N)."""
+
+
+def _assert_backends_agree(obs_cpu, obs_mjx, reward_cpu, reward_mjx):
+    forces = np.r_[layout_slices(CRITIC_LAYOUT)["foot_contact_force"]]
+    others = np.setdiff1d(np.arange(obs_cpu["critic"].shape[1]), forces)
+    np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=5e-3)
+    np.testing.assert_allclose(obs_mjx["critic"][:, others], obs_cpu["critic"][:, others], atol=5e-3)
+    np.testing.assert_allclose(obs_mjx["critic"][:, forces], obs_cpu["critic"][:, forces], **FORCE_TOLERANCE)
+    np.testing.assert_allclose(reward_mjx, reward_cpu, atol=5e-4)
+
+
 def test_mjx_follows_the_cpu_backend_from_the_same_start(nominal_pair):
     """Nominal, fixed command, both robots standing (zero actions) for 40 steps while the gait clock runs.
 
     Tolerances (measured worst cases x ~5): policy observations 5e-3, rewards 5e-4, critic observations
-    5e-3 apart from the contact forces (0.25 N of about 200 N). With moving legs the trajectories part at
-    touchdowns: MJX's box-plane collision keeps the corners within 1 mm of the deepest one, MuJoCo's C
-    collision every penetrating corner (docs/gpu.md).
+    5e-3 apart from the contact forces (0.25 N of about 200 N).
     """
     cpu, mjx = nominal_pair
     obs_cpu, obs_mjx = cpu.reset(), mjx.reset()
     np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=1e-5)
-    forces = np.r_[layout_slices(CRITIC_LAYOUT)["foot_contact_force"]]
-    others = np.setdiff1d(np.arange(obs_cpu["critic"].shape[1]), forces)
     actions = np.zeros((2, 12))
     for _ in range(40):
         obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
         obs_mjx, reward_mjx, done_mjx, info_mjx = mjx.step(actions)
-        np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=5e-3)
-        np.testing.assert_allclose(obs_mjx["critic"][:, others], obs_cpu["critic"][:, others], atol=5e-3)
-        np.testing.assert_allclose(obs_mjx["critic"][:, forces], obs_cpu["critic"][:, forces], atol=0.25)
-        np.testing.assert_allclose(reward_mjx, reward_cpu, atol=5e-4)
+        _assert_backends_agree(obs_cpu, obs_mjx, reward_cpu, reward_mjx)
         assert not done_cpu.any() and not done_mjx.any()
     assert set(info_mjx[0]) == set(cpu.step(actions)[3][0])
     terms = np.array(list(info_mjx[0]["reward_terms"].values()))
     assert terms.sum() == pytest.approx(reward_mjx[0], abs=1e-5)
+
+
+def _walking_policy():
+    """The shipped PPO agent's deterministic actions on raw observations."""
+    import pickle
+    from pathlib import Path
+
+    from stable_baselines3 import PPO
+
+    run = Path(__file__).resolve().parent.parent / "trained_agents" / "ppo" / "Zerith1-v0_1"
+    model = PPO.load(run / "Zerith1-v0.zip", device="cpu")
+    with open(run / "Zerith1-v0" / "vecnormalize.pkl", "rb") as file:
+        normalizer = pickle.load(file)
+    return lambda obs: model.predict(normalizer.normalize_obs(obs), deterministic=True)[0]
+
+
+@pytest.mark.parametrize("policy", ["random", "walking"])
+def test_mjx_follows_the_cpu_backend_with_moving_legs(policy):
+    """Touchdowns, lift-offs and falls alike: the soles are spheres and the integrator is Euler.
+
+    Four robots in `nominal` from the same start, driven by random actions of std 0.1 or by the shipped
+    walking agent, for 100 control steps or until the first fall, which comes at the same step and to the
+    same robots on both backends. (Box soles part at the first touchdown: MJX keeps the box corners within
+    1 mm of the deepest, MuJoCo every penetrating corner. With `implicitfast`, the backends part when an
+    actuator reaches its torque limit: C MuJoCo drops the clamped actuator's damping from the implicit
+    step, MJX keeps it.)
+    """
+    n = 4
+    kwargs = dict(scenario="nominal", command=COMMAND, episode_steps=1000)
+    cpu = zerith_gym.make_vec_env(n, seed=0, backend="cpu", workers=0, **kwargs)
+    mjx = zerith_gym.make_vec_env(n, seed=0, backend="mjx", **kwargs)
+    rng = np.random.default_rng(0)
+    act = _walking_policy() if policy == "walking" else lambda obs: rng.normal(scale=0.1, size=(n, 12))
+    obs_cpu, _ = cpu.reset(), mjx.reset()
+    for step in range(100):
+        actions = act(obs_cpu)
+        obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
+        obs_mjx, reward_mjx, done_mjx, _ = mjx.step(actions)
+        np.testing.assert_array_equal(done_mjx, done_cpu, err_msg=f"step {step}")
+        if done_cpu.any():
+            assert policy == "random", f"the walking agent fell at step {step}"
+            break
+        _assert_backends_agree(obs_cpu, obs_mjx, reward_cpu, reward_mjx)
+    else:
+        assert policy == "walking", "random actions of std 0.1 were expected to topple a robot"
+    cpu.close()
+    mjx.close()
 
 
 def test_mjx_episodes_end_and_restart_inside_the_step():

@@ -19,7 +19,7 @@ BAD_STATE_WARNINGS = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjt
 if BAD_STATE_WARNINGS.stop - BAD_STATE_WARNINGS.start != 3:
     raise RuntimeError("MuJoCo's bad qpos, qvel and qacc warnings are expected to be contiguous")
 GROUND_CLEARANCE = 0.002
-"""Gap (m) left between the lowest foot corner and the ground when the robot is placed at reset."""
+"""Gap (m) left between the lowest sole sphere and the ground when the robot is placed at reset."""
 
 
 def build_model(terrain: Terrain) -> mujoco.MjModel:
@@ -47,8 +47,8 @@ class NominalModel:
     root: int
     links: np.ndarray
     friction_geoms: np.ndarray
-    foot_geoms: np.ndarray
-    foot_size: np.ndarray  # half sizes of the foot boxes (feet, 3)
+    sole_geoms: np.ndarray  # (feet * corners,) the sole spheres, left foot's first
+    sole_radius: np.ndarray  # (feet * corners,)
     scale_column: np.ndarray  # per body: 0 (unscaled), 1 (root), 2 + k (link k) of the mass factors
 
     @staticmethod
@@ -57,7 +57,7 @@ class NominalModel:
         links = np.array([b for b in range(1, model.nbody) if b != root])
         if len(links) != NUM_LINKS:
             raise RuntimeError(f"expected {NUM_LINKS} non-root robot bodies, found {len(links)}")
-        feet = np.array([model.geom(name).id for name in robot.FOOT_GEOMS])
+        soles = np.array([model.geom(name).id for foot in robot.SOLE_GEOMS for name in foot])
         ground = np.array([model.geom(name).id for name in terrain.ground_geoms])
         scale_column = np.zeros(model.nbody, dtype=int)
         scale_column[root] = 1
@@ -74,9 +74,9 @@ class NominalModel:
             biasprm=model.actuator_biasprm.copy(),
             root=root,
             links=links,
-            friction_geoms=np.concatenate([feet, ground]),
-            foot_geoms=feet,
-            foot_size=model.geom_size[feet].copy(),
+            friction_geoms=np.concatenate([soles, ground]),
+            sole_geoms=soles,
+            sole_radius=model.geom_size[soles, 0].copy(),
             scale_column=scale_column,
         )
 
@@ -143,23 +143,14 @@ def apply_domain(models: list[mujoco.MjModel], nominal: NominalModel, params: Do
             getattr(model, name)[:] = values[k]
 
 
-_SOLE_CORNERS = np.array([[sx, sy, -1.0] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)])
-"""Bottom corners of a box geom, in units of its half sizes."""
+def lowest_sole_clearance(sole_xpos: np.ndarray, sole_radius: np.ndarray, terrain: Terrain) -> np.ndarray:
+    """Height (n,) of each robot's lowest sole sphere above the ground under its centre.
 
-
-def lowest_sole_clearance(
-    foot_xpos: np.ndarray, foot_xmat: np.ndarray, foot_size: np.ndarray, terrain: Terrain
-) -> np.ndarray:
-    """Height (n,) of each robot's lowest foot-sole corner above the ground under it.
-
-    `foot_xpos` (n, feet, 3) and `foot_xmat` (n, feet, 9) are the foot geoms' world poses (numpy or JAX).
+    `sole_xpos` (n, spheres, 3): the sole spheres' world positions (numpy or JAX); `sole_radius`: their radii.
     """
-    xp = namespace(foot_xpos)
-    n, feet = foot_xpos.shape[:2]
-    rotation = foot_xmat.reshape(n, feet, 3, 3)
-    corners = foot_xpos[:, :, None] + (_SOLE_CORNERS * foot_size[:, None]) @ rotation.swapaxes(-1, -2)
-    clearance = corners[..., 2] - terrain.height_at(corners[..., :2])  # (n, feet, corners)
-    return xp.min(clearance.reshape(n, -1), axis=1)
+    xp = namespace(sole_xpos)
+    clearance = sole_xpos[..., 2] - sole_radius - terrain.height_at(sole_xpos[..., :2])
+    return xp.min(clearance, axis=1)
 
 
 def reset_states(
@@ -169,18 +160,15 @@ def reset_states(
     terrain: Terrain,
     nominal: NominalModel,
 ) -> None:
-    """Set robot k at rest at `qpos[k]`, lowered so its lowest foot corner just clears the ground."""
-    feet = nominal.foot_geoms
+    """Set robot k at rest at `qpos[k]`, lowered so its lowest sole sphere just clears the ground."""
+    soles = nominal.sole_geoms
     for model, data, q in zip(models, datas, qpos, strict=True):
         mujoco.mj_resetData(model, data)
         data.qpos[:] = q
         data.ctrl[:] = robot.DEFAULT_JOINT_POS
         mujoco.mj_kinematics(model, data)
     lowest = lowest_sole_clearance(
-        np.array([data.geom_xpos[feet] for data in datas]),
-        np.array([data.geom_xmat[feet] for data in datas]),
-        nominal.foot_size,
-        terrain,
+        np.array([data.geom_xpos[soles] for data in datas]), nominal.sole_radius, terrain
     )
     for model, data, q, low in zip(models, datas, qpos, lowest.tolist(), strict=True):
         data.qpos[2] = q[2] - low + GROUND_CLEARANCE

@@ -38,7 +38,9 @@ ROOT_BODY = "pelvis"
 """Root body carrying pelvis, trunk and head: the robot's "centroid" for external forces."""
 HAND_BODIES = ("left_hand", "right_hand")
 FOOT_BODIES = ("left_foot", "right_foot")
-FOOT_GEOMS = ("left_foot", "right_foot")
+SOLE_CORNERS = ("heel_left", "heel_right", "toe_left", "toe_right")
+SOLE_GEOMS = tuple(tuple(f"{side}_sole_{corner}" for corner in SOLE_CORNERS) for side in SIDES)
+"""Per foot (left, right), the sphere geoms at the corners of the sole: the only geoms touching the ground."""
 STANDING_HEIGHT = 0.745
 """Pelvis height (m) above the ground when standing still in the default pose."""
 HIP_WIDTH = 0.2

@@ -68,8 +68,8 @@ class MjxPhysics:
         self._template = mjx.make_data(self.device_model)
         self._check_sensor_layout(stripped)
         self._force_bodies = np.array([self.model.body(name).id for name in FORCE_TARGETS[force_target]])
-        self._feet = self.nominal.foot_geoms
-        self._foot_size = jnp.asarray(self.nominal.foot_size)
+        self._soles = self.nominal.sole_geoms
+        self._sole_radius = jnp.asarray(self.nominal.sole_radius)
         self._contacts = _ContactMap.of(self.model, self._template, terrain.ground_geoms)
 
     def _check_sensor_layout(self, stripped: mujoco.MjModel) -> None:
@@ -89,9 +89,7 @@ class MjxPhysics:
         model = self.with_fields(fields)
         data = self._template.replace(qpos=qpos, ctrl=jnp.asarray(robot.DEFAULT_JOINT_POS, qpos.dtype))
         data = mjx.kinematics(model, data)
-        lowest = lowest_sole_clearance(
-            data.geom_xpos[self._feet][None], data.geom_xmat[self._feet][None], self._foot_size, self.terrain
-        )[0]
+        lowest = lowest_sole_clearance(data.geom_xpos[self._soles][None], self._sole_radius, self.terrain)[0]
         data = data.replace(qpos=qpos.at[2].set(qpos[2] - lowest + GROUND_CLEARANCE))
         return mjx.forward(model, data)
 
@@ -141,7 +139,8 @@ class _ContactMap:
         is_ground = np.zeros(model.ngeom + 1, dtype=bool)
         is_ground[[model.geom(name).id for name in ground_geoms]] = True
         foot = np.full(model.ngeom + 1, 2)
-        foot[[model.geom(name).id for name in robot.FOOT_GEOMS]] = [0, 1]
+        for index, geoms in enumerate(robot.SOLE_GEOMS):
+            foot[[model.geom(name).id for name in geoms]] = index
         leg = np.full(model.ngeom + 1, 2)
         leg[_subtree_geoms(model, "left_hip_yaw_link")] = 0
         leg[_subtree_geoms(model, "right_hip_yaw_link")] = 1
