@@ -2,7 +2,8 @@
 
     python examples/train_zerith.py                                   # HuRi, the Zerith1-v0 CPU preset
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
-    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run (model + normalizer)
+    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run where it stopped
+    python examples/train_zerith.py -conf hyperparams/huri_robust.yml -f runs --max-wall-minutes 150
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
 `hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: a slice of robots per core),
@@ -16,8 +17,12 @@ written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip`
     rl_zoo3 enjoy --algo huri --env Zerith1-v0 -f logs/ --no-render -n 1000
     python examples/watch_zerith.py logs/huri/Zerith1-v0_1
 
-Checkpoints (model and normalizer) are written every `--checkpoint-freq` steps; TensorBoard logs include
-the episode sums of every reward term (`terms/<name>`) and the fall rate.
+Every `--checkpoint-freq` steps and at the end, the run folder gets its newest checkpoint: model,
+normalizer, random states, curriculum stage and the sessions' wall time (`sb3_huri.zoo.checkpoints`), and
+`curve.csv` a row per rollout; `<run>/checkpoints/` keeps every checkpoint's model and normalizer.
+`--resume` continues from the newest checkpoint, so a run can train over many sessions (stop it any time:
+at most `--checkpoint-freq` steps are lost). TensorBoard logs include the episode sums of every reward term
+(`terms/<name>`) and the fall rate.
 """
 
 from __future__ import annotations
@@ -27,13 +32,15 @@ import time
 from pathlib import Path
 
 import torch as th
+import yaml
 from rl_zoo3.utils import get_callback_list
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo import METHODS, algorithm_kwargs, next_run_folder, normalize_kwargs, read_preset, save_run
+from sb3_huri.zoo import METHODS, algorithm_kwargs, next_run_folder, normalize_kwargs, read_preset
+from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState, restore_random_states
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
 
@@ -49,9 +56,15 @@ def main() -> None:
     parser.add_argument(
         "--algo", default="huri", choices=list(METHODS), help="method (RL Zoo algorithm name)"
     )
-    parser.add_argument("-conf", "--conf-file", type=Path, default=DEFAULT_PRESET, help="hyperparameter file")
+    parser.add_argument(
+        "-conf",
+        "--conf-file",
+        type=Path,
+        default=None,
+        help="hyperparameter file (default: huri.yml, or a resumed run's)",
+    )
     parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="override the preset's budget")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=None, help="default: 0, or a resumed run's")
     parser.add_argument("-f", "--log-folder", type=Path, default=Path("logs"))
     parser.add_argument(
         "--resume", type=Path, default=None, help="a run folder to continue (-n more steps; same curriculum)"
@@ -75,10 +88,22 @@ def main() -> None:
     )
     parser.add_argument("--curriculum-stages", type=int, default=8, help="stages of --curriculum-steps")
     parser.add_argument("--tensorboard-log", default=None)
+    parser.add_argument(
+        "--max-wall-minutes", type=float, default=None, help="stop (with a checkpoint) after this long"
+    )
     args = parser.parse_args()
     th.set_num_threads(args.threads)
 
-    preset = read_preset(ENV_ID, args.conf_file)
+    if args.resume:
+        if not (args.resume / f"{ENV_ID}.zip").is_file():
+            parser.error(f"--resume {args.resume}: no {ENV_ID}.zip there (a run folder in RL Zoo's layout)")
+        saved = args.resume / ENV_ID
+        preset = yaml.safe_load((saved / "config.yml").read_text())
+        saved_args = yaml.safe_load((saved / "args.yml").read_text())
+        args.algo, args.seed = saved_args["algo"], saved_args["seed"] if args.seed is None else args.seed
+    if args.conf_file is not None or not args.resume:
+        preset = read_preset(ENV_ID, args.conf_file or DEFAULT_PRESET)
+    args.seed = 0 if args.seed is None else args.seed
     budget = args.n_timesteps or int(preset["n_timesteps"])
     env_kwargs = dict(preset.get("env_kwargs") or {})
     scenario = get_scenario(env_kwargs.pop("scenario", "train"))
@@ -97,8 +122,11 @@ def main() -> None:
         env = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
     elif norm is not None:
         env = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
+    state = RunState.read(run) if args.resume else RunState()
     if args.resume:
         model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log)
+        restore_random_states(run)
+        env.seed(args.seed + model.num_timesteps)  # reproducible from this checkpoint
     else:
         model = HuRiPPO(
             preset["policy"],
@@ -119,8 +147,14 @@ def main() -> None:
     if args.curriculum_steps is not None:
         callbacks = [c for c in callbacks if not isinstance(c, RandomizationCurriculum)]
         callbacks.append(RandomizationCurriculum(args.curriculum_steps, args.curriculum_stages))
+    curriculum = next((c for c in callbacks if isinstance(c, RandomizationCurriculum)), None)
+    if curriculum is not None:
+        curriculum.start_stage = state.curriculum_stage
+    every = max(args.checkpoint_freq // env.num_envs, 1)
+    callbacks.append(CheckpointCallback(every, str(run / "checkpoints"), save_vecnormalize=True))
+    max_wall = None if args.max_wall_minutes is None else 60.0 * args.max_wall_minutes
     callbacks.append(
-        CheckpointCallback(max(args.checkpoint_freq // env.num_envs, 1), str(run), save_vecnormalize=True)
+        RunCheckpoint(run, preset, run_args, args.checkpoint_freq, curriculum, max_wall, verbose=1)
     )
     print(f"Writing to {run}; callbacks: {', '.join(type(c).__name__ for c in callbacks)}")
     began = time.time()
@@ -129,7 +163,6 @@ def main() -> None:
         callback=CallbackList(callbacks),
         reset_num_timesteps=not args.resume,
     )
-    save_run(model, run, preset, run_args)
     print(f"{model.num_timesteps} steps in {time.time() - began:.0f} s; saved {run / (ENV_ID + '.zip')}")
 
 

@@ -26,7 +26,7 @@ import torch as th
 
 import zerith_gym
 from sb3_huri.zoo import load_run
-from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
+from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
 
 ENV_ID = "Zerith1-v0"
 SHIPPED = Path(__file__).resolve().parent.parent / "trained_agents"
@@ -88,7 +88,7 @@ def watch(agent: Path, command: tuple[float, float, float] | None, args: argpars
             policy_obs = normalizer.normalize_obs(obs) if normalizer is not None else obs
             action, _ = model.predict(policy_obs, deterministic=True)
             obs, _, terminated, truncated, info = env.step(action)
-            velocities.append(obs["critic"][_BASE_VELOCITY][0])
+            velocities.append(critic_in_units(obs["critic"])[_BASE_VELOCITY][0])
             fell, done = info["fall"], terminated or truncated
         survived += not fell
         mean_vx = float(np.mean(velocities))

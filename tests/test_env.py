@@ -11,7 +11,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import zerith_gym
 from zerith_gym import Zerith1Env
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE, critic_in_units
 from zerith_gym.rewards import REWARD_NAMES
 
 STEP_INFO_KEYS = {"fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command"}
@@ -160,9 +160,9 @@ def test_joint_acceleration_penalty_uses_consecutive_joint_velocities():
     joint_velocity = slice(22, 34)  # noiseless joint velocities in the critic observation
     actions = np.random.default_rng(0).uniform(-1, 1, size=(5, 12))
     for action in actions:
-        previous = obs["critic"][joint_velocity].astype(np.float64)
+        previous = critic_in_units(obs["critic"].astype(np.float64))[joint_velocity]
         obs, reward, *_ = env.step(action)
-        acceleration = (obs["critic"][joint_velocity] - previous) / 0.02
+        acceleration = (critic_in_units(obs["critic"].astype(np.float64))[joint_velocity] - previous) / 0.02
         assert reward == pytest.approx(0.02 * np.sum(acceleration**2), rel=1e-3)
         assert reward > 0.0
 

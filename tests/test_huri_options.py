@@ -111,10 +111,10 @@ def kl_adaptive_model(desired_kl: float, **kwargs) -> tuple[HuRiPPO, list[float]
 
 
 def replay(learning_rate: float, desired_kl: float, kls: list[float]) -> float:
-    """The legged-robot PPO rule written out: / 1.5 above 2 x desired, x 1.5 below half, in [1e-5, 1e-2]."""
+    """The legged-robot PPO rule written out: / 1.5 above 2 x desired, x 1.5 below half, in [1e-6, 1e-2]."""
     for kl in kls:
         if kl > 2 * desired_kl:
-            learning_rate = max(learning_rate / 1.5, 1e-5)
+            learning_rate = max(learning_rate / 1.5, 1e-6)
         elif 0 < kl < desired_kl / 2:
             learning_rate = min(learning_rate * 1.5, 1e-2)
     return learning_rate
@@ -132,8 +132,9 @@ def test_kl_adaptive_learning_rate_follows_the_rule_per_minibatch(desired_kl, di
         assert expected <= 1e-3 / 1.5**5
     elif direction == "up":
         assert expected == pytest.approx(1e-2)  # the upper bound
-    # Logged: the rate each update started from (the schedule's is not used).
-    assert recorder.records["train/learning_rate"][0] == pytest.approx(replay(1e-3, desired_kl, kls[:8]))
+    # Logged: the mean rate of the update's minibatch steps (the schedule's is not used).
+    first_update = [replay(1e-3, desired_kl, kls[: k + 1]) for k in range(8)]
+    assert recorder.records["train/learning_rate"][0] == pytest.approx(np.mean(first_update))
 
 
 def test_kl_adaptive_learning_rate_is_saved_and_continues(tmp_path):
@@ -143,6 +144,57 @@ def test_kl_adaptive_learning_rate_is_saved_and_continues(tmp_path):
     assert loaded.desired_kl == 1e-7 and loaded.kl_learning_rate == model.kl_learning_rate < 1e-3
     loaded.learn(64, reset_num_timesteps=False)
     assert loaded.kl_learning_rate < model.kl_learning_rate
+
+
+def _actor_and_critic(model: HuRiPPO) -> tuple[list[th.Tensor], list[th.Tensor]]:
+    critic_ids = {id(p) for p in model.policy.critic_parameters()}
+    rnd_ids = {id(p) for p in model.policy.rnd.parameters()} if model.policy.rnd is not None else set()
+    params = [p for p in model.policy.parameters() if id(p) not in rnd_ids]
+    actor = [p.detach().clone() for p in params if id(p) not in critic_ids]
+    return actor, [p.detach().clone() for p in model.policy.critic_parameters()]
+
+
+def test_critic_learning_rate_trains_the_critic_at_its_own_rate(tmp_path):
+    """Actor at 1e-12 (it hardly moves), critic at 1e-3 (it learns); both rates survive save and load."""
+    model = HuRiPPO("MlpPolicy", dict_env(), learning_rate=1e-12, critic_learning_rate=1e-3, seed=0, **SMALL)
+    recorder = KeyRecorder()
+    model.set_logger(Logger(folder=None, output_formats=[recorder]))
+    actor_before, critic_before = _actor_and_critic(model)
+    model.learn(128)
+    actor_after, critic_after = _actor_and_critic(model)
+    actor_moved = max((a - b).abs().max().item() for a, b in zip(actor_after, actor_before, strict=True))
+    critic_moved = max((a - b).abs().max().item() for a, b in zip(critic_after, critic_before, strict=True))
+    assert actor_moved < 1e-9 < 1e-4 < critic_moved
+    names = {group["name"]: group["lr"] for group in model.policy.optimizer.param_groups}
+    assert names == {"actor": 1e-12, "critic": 1e-3}
+    assert recorder.records["train/critic_learning_rate"][-1] == pytest.approx(1e-3)
+    model.save(tmp_path / "model.zip")
+    loaded = HuRiPPO.load(tmp_path / "model.zip", env=dict_env())
+    state_dicts_equal(loaded.policy.optimizer.state_dict(), model.policy.optimizer.state_dict())
+    loaded.learn(64, reset_num_timesteps=False)
+    assert {g["name"]: g["lr"] for g in loaded.policy.optimizer.param_groups} == names
+
+
+def test_desired_kl_adapts_only_the_actor_rate_when_the_critic_has_its_own():
+    model = HuRiPPO(
+        "MlpPolicy",
+        dict_env(),
+        learning_rate=1e-3,
+        critic_learning_rate=lambda progress: 5e-4 * progress,
+        desired_kl=1e-7,
+        seed=0,
+        **SMALL,
+    )
+    model.learn(128)
+    rates = {group["name"]: group["lr"] for group in model.policy.optimizer.param_groups}
+    assert rates["actor"] == model.kl_learning_rate < 1e-3 / 1.5**5  # pushed down by the tiny KL target
+    assert rates["critic"] == pytest.approx(5e-4 * model._current_progress_remaining)
+
+
+@pytest.mark.parametrize("value", [0.0, -1e-3, "fast"])
+def test_bad_critic_learning_rate_is_refused(value):
+    with pytest.raises(ValueError, match="critic_learning_rate must be None, a float > 0 or a schedule"):
+        HuRiPPO("MlpPolicy", dict_env(), critic_learning_rate=value, **SMALL)
 
 
 def test_target_kl_early_stop_still_works_with_a_desired_kl():

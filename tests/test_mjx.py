@@ -64,9 +64,9 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
         reset_values(reset_u, arrays, terrain.spec), jitted_reset(_to_jax(reset_u), _to_jax(arrays))
     )
 
-    due = rng.random((n, 4)) < 0.5
+    step_count = rng.integers(0, 1000, n)
     force, command = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
-    args = (step_u, due, force, command, arrays)
+    args = (step_u, step_count, force, command, arrays)
     _assert_tree_close(step_disturbances(*args), jax.jit(step_disturbances)(*_to_jax(args)))
 
     vector = reset_values(reset_u, arrays, terrain.spec).domain_vector
@@ -213,6 +213,36 @@ def test_mjx_episodes_end_and_restart_inside_the_step():
     assert ended, "no episode ended in 24 steps of 12-step episodes"
     assert all(length <= 12 for _, _, length in ended)
     assert any(truncated and length == 12 for _, truncated, length in ended)
+
+
+def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
+    """The robust scenario's forces take turns between centroid, hands and feet on MJX as on the CPU."""
+    from zerith_gym.disturbances import FORCE_TARGETS
+    from zerith_gym.scenarios import scaled_scenario
+
+    gentle = scaled_scenario(SCENARIOS["robust"], 0.2)
+    env = zerith_gym.make_vec_env(2, seed=0, backend="mjx", scenario=gentle, command=COMMAND)
+    table = gentle.force.table(1000)
+    model = env.robots.physics.model
+    bodies = {name: [model.body(b).id for b in names] for name, names in FORCE_TARGETS.items()}
+    env.reset()
+    seen = set()
+    for _ in range(520):  # the feet's phases start at step 400
+        step_count = np.asarray(env.robots.state.step_count).copy()
+        _, _, dones, infos = env.step(np.zeros((2, 12)))
+        applied = np.asarray(env.robots.state.data.xfrc_applied)[:, :, :3]
+        for i, info in enumerate(infos):
+            if dones[i]:
+                continue
+            target = list(FORCE_TARGETS)[table.target[step_count[i]]]
+            for name, ids in bodies.items():
+                expected = info["external_force"] if name == target else np.zeros(3)
+                np.testing.assert_allclose(
+                    applied[i, ids], np.broadcast_to(expected, (len(ids), 3)), atol=1e-5
+                )
+            if np.any(info["external_force"]):
+                seen.add(target)
+    assert seen == set(FORCE_TARGETS)
 
 
 def test_mjx_randomizes_like_the_cpu_backend():

@@ -131,13 +131,13 @@ def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def check_scenario_change(current: Scenario, new: Scenario) -> None:
-    """ValueError unless an env built for `current` can follow `new` (same terrain and force target)."""
+    """ValueError unless an env built for `current` can follow `new` (the same terrain)."""
     if not isinstance(new, Scenario):
         raise ValueError(f"expected a Scenario, got {new!r}")
-    if new.terrain != current.terrain or new.force.target != current.force.target:
+    if new.terrain != current.terrain:
         raise ValueError(
-            f"scenario {new.name!r} has another terrain or force target than {current.name!r}: only "
-            "randomization, forces, pushes and commands can change in an env; make a new env instead"
+            f"scenario {new.name!r} has another terrain than {current.name!r}: only randomization, "
+            "forces, pushes and commands can change in an env; make a new env instead"
         )
 
 
@@ -188,7 +188,7 @@ class ZerithBatch:
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
-        self.sim = Simulator(num_robots, self.terrain, self.scenario.force.target, physics_threads)
+        self.sim = Simulator(num_robots, self.terrain, physics_threads)
         model = self.sim.models[0]
         self.task = ZerithTask(
             num_robots,
@@ -239,9 +239,10 @@ class ZerithBatch:
         With `autoreset`, robots whose episode ended start a new one, and the returned next observations
         and commands are the new episode's.
         """
-        targets, force, kicks = self.task.before_physics(actions)
-        command = self.task.command.copy()
-        unstable = self.sim.step(targets, force, kicks)
+        targets, drawn = self.task.before_physics(actions)
+        force, command = drawn.force, self.task.command.copy()
+        kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
+        unstable = self.sim.step(targets, force, drawn.force_target, kicks)
         out = self.task.after_physics(self.sim.sensordata, unstable)
         policy, critic = out.policy_obs, out.critic_obs
         ended = np.flatnonzero(out.terminated | out.truncated) if autoreset else ()

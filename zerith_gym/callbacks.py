@@ -90,6 +90,7 @@ class RandomizationCurriculum(BaseCallback):
     rises by one stage at a time.
 
     `scenario`: the base (a name or a `Scenario`); default: the scenario the training env was made with.
+    `start_stage`: the stage a resumed run had reached (its checkpoint's), from which the gate goes on.
     The change is made between rollouts through `set_scenario` of the env (`ZerithVecEnv`, or each
     `Zerith1Env` of another VecEnv): randomization ranges apply from each robot's next reset, forces,
     pushes and observation noise from the next step. Logs `curriculum/scale`.
@@ -101,6 +102,7 @@ class RandomizationCurriculum(BaseCallback):
         stages: int = 8,
         scenario: str | Scenario | None = None,
         max_fall_rate: float | None = None,
+        start_stage: int | None = None,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
@@ -113,6 +115,9 @@ class RandomizationCurriculum(BaseCallback):
             raise ValueError(f"max_fall_rate must be in [0, 1], got {max_fall_rate!r}")
         self.steps, self.stages, self.max_fall_rate = steps, stages, max_fall_rate
         self.base = None if scenario is None else resolve_scenario(scenario)
+        if start_stage is not None and not (isinstance(start_stage, int) and 0 <= start_stage <= stages):
+            raise ValueError(f"start_stage must be an integer in [0, stages={stages}], got {start_stage!r}")
+        self.start_stage = start_stage
         self.stage: int | None = None
         self._episodes = self._falls = 0
 
@@ -134,9 +139,10 @@ class RandomizationCurriculum(BaseCallback):
     def _on_rollout_start(self) -> None:
         scheduled = self.scheduled_stage(self.model.num_timesteps)
         stage = scheduled
-        if self.max_fall_rate is not None and self.stage is not None:
+        previous = self.stage if self.stage is not None else self.start_stage
+        if self.max_fall_rate is not None and previous is not None:
             settled = self._episodes > 0 and self._falls / self._episodes <= self.max_fall_rate
-            stage = min(scheduled, self.stage + 1) if settled else min(scheduled, self.stage)
+            stage = min(scheduled, previous + 1) if settled else min(scheduled, previous)
         if stage != self.stage:
             self.stage = stage
             scenario = self.base if stage == self.stages else scaled_scenario(self.base, self.scale)

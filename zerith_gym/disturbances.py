@@ -4,11 +4,13 @@ A schedule draws a horizontal force (uniform magnitude, uniform direction) at th
 and holds it for `duration_steps` control steps; in between, no force acts. `duration == period` is a
 continuous disturbance, a short duration an impulse. The same force vector acts on each body of the target
 group ("centroid": the root body; "hands" and "feet": each of the two bodies), at the body's centre of mass.
+A `ForceCycle` takes turns between schedules (targets and kinds of force) within an episode.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -20,6 +22,8 @@ FORCE_TARGETS = {
     "hands": robot.HAND_BODIES,
     "feet": robot.FOOT_BODIES,
 }
+TARGET_INDEX = {name: index for index, name in enumerate(FORCE_TARGETS)}
+"""Index of each target in `FORCE_TARGETS`, as the per-step force target tables hold it."""
 FORCE_DRAWS = 2
 """Uniform numbers in [0, 1) consumed by one force draw: magnitude and direction."""
 PUSH_DRAWS = 2
@@ -48,14 +52,73 @@ class ForceSchedule:
     def active(self) -> bool:
         return self.magnitude[1] > 0.0
 
+    def scaled(self, scale: float) -> ForceSchedule:
+        """This schedule with its magnitudes multiplied by `scale`."""
+        return replace(self, magnitude=(scale * self.magnitude[0], scale * self.magnitude[1]))
 
+    def table(self, num_steps: int) -> ForceTable:
+        """This schedule over control steps 0..num_steps-1."""
+        draw, on = schedule_table(self, num_steps)
+        return ForceTable(
+            draw, on, np.tile(np.asarray(self.magnitude, dtype=float), (num_steps, 1)),
+            np.full(num_steps, TARGET_INDEX[self.target]),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ForceCycle:
+    """Schedules taking turns within an episode: `schedules[k]` acts over steps [k, k + 1) * `phase_steps`,
+    then the cycle starts again. Each schedule keeps its own timing in episode steps (an impulse schedule
+    with period 100 strikes at steps 100, 200, ... that fall in its phases)."""
+
+    schedules: tuple[ForceSchedule, ...]
+    phase_steps: int = 100
+
+    def __post_init__(self) -> None:
+        if not self.schedules or not all(isinstance(s, ForceSchedule) for s in self.schedules):
+            raise ValueError("ForceCycle needs one or more ForceSchedule")
+        if not isinstance(self.phase_steps, int) or self.phase_steps < 1:
+            raise ValueError(f"ForceCycle phase_steps must be a positive integer, got {self.phase_steps!r}")
+
+    @property
+    def active(self) -> bool:
+        return any(s.active for s in self.schedules)
+
+    @property
+    def magnitude(self) -> tuple[float, float]:
+        """The smallest and largest magnitude of any of its schedules (N)."""
+        return min(s.magnitude[0] for s in self.schedules), max(s.magnitude[1] for s in self.schedules)
+
+    def scaled(self, scale: float) -> ForceCycle:
+        return replace(self, schedules=tuple(s.scaled(scale) for s in self.schedules))
+
+    def table(self, num_steps: int) -> ForceTable:
+        tables = [s.table(num_steps) for s in self.schedules]
+        phase = (np.arange(num_steps) // self.phase_steps) % len(self.schedules)
+        steps = np.arange(num_steps)
+        return ForceTable(*(np.stack(column)[phase, steps] for column in zip(*tables, strict=True)))
+
+
+class ForceTable(NamedTuple):
+    """A force program over an episode's control steps: what the task reads at each step."""
+
+    draw: np.ndarray  # (steps,) bool: a new force is drawn
+    on: np.ndarray  # (steps,) bool: the force acts
+    magnitude: np.ndarray  # (steps, 2) N: the range a new force's magnitude is drawn from
+    target: np.ndarray  # (steps,) int: the target it acts on (`TARGET_INDEX`)
+
+
+ForceProgram = ForceSchedule | ForceCycle
+"""What a scenario's `force` can be: one schedule, or schedules taking turns."""
 NO_FORCE = ForceSchedule()
 
 
-def horizontal_vectors(uniforms: np.ndarray, magnitude: tuple[float, float] | np.ndarray) -> np.ndarray:
+def horizontal_vectors(uniforms: np.ndarray, magnitude: np.ndarray) -> np.ndarray:
     """Vectors (n, 3) of uniform magnitude in `magnitude` and uniform horizontal direction (numpy or JAX)."""
     xp = namespace(uniforms)
-    norm = magnitude[0] + (magnitude[1] - magnitude[0]) * uniforms[:, 0]
+    magnitude = xp.asarray(magnitude)
+    low, high = magnitude[..., 0], magnitude[..., 1]  # a range, or one per vector (n, 2)
+    norm = low + (high - low) * uniforms[:, 0]
     angle = 2.0 * np.pi * uniforms[:, 1]
     return xp.stack([norm * xp.cos(angle), norm * xp.sin(angle), xp.zeros_like(norm)], axis=1)
 

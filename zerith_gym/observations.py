@@ -1,7 +1,14 @@
-"""Observation layouts of the actor ("policy") and the privileged critic ("critic").
+"""Observation layouts of the actor ("policy") and the privileged critic ("critic"), and the critic's scales.
 
 Each layout is a sequence of (name, size) blocks; `layout_slices` turns it into index ranges, which the
 documentation tables are generated from, so code and docs agree.
+
+The actor's observation is in physical units, for a running normalizer (`VecNormalize`) and the deployed
+actor, which carries that normalizer. The critic's comes out of the env already scaled by known ranges
+(`CRITIC_OFFSET`, `CRITIC_SCALE`), legged-robot style: every domain parameter from its widest range in the
+paper to [-1, 1], the external force by the largest test force, contact forces by the body weight. Running
+statistics cannot scale those inputs: they are constant while a curriculum holds their ranges closed, and
+a normalizer that saw them constant saturates when the ranges open. `critic_in_units` undoes the scaling.
 """
 
 from __future__ import annotations
@@ -9,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.randomization import DOMAIN_SIZES
+from zerith_gym.randomization import DOMAIN_SIZES, WIDEST, domain_bounds
 
 HEIGHT_SAMPLE_OFFSETS = np.array([(dx, dy) for dx in (-0.1, 0.0, 0.1) for dy in (-0.1, 0.0, 0.1)])
 """Height-sample points around each foot (m, in the base's yaw frame): a 3 x 3 grid, 0.1 m apart."""
@@ -46,6 +53,16 @@ POLICY_NOISE = {
 """Half width of the uniform sensor noise on each policy block in training (units of the block)."""
 
 
+MAX_EXTERNAL_FORCE = 200.0
+"""The largest external force (N) of the paper's tests (sudden U[150, 200] N): the critic's unit of force."""
+BODY_WEIGHT = robot.TOTAL_MASS * 9.81
+"""The nominal body weight (N): the critic's unit of contact force."""
+POLICY_BLOCK_SCALES = {"base_angular_velocity": 0.25, "joint_velocity": 0.05}
+"""Factors on the policy's blocks where the critic reads them (rad/s: 4 and 20 to about 1); others 1."""
+HEIGHT_SCALE = 5.0
+"""Factor on heights (m) in the critic: 0.2 m to 1."""
+
+
 def layout_slices(layout: tuple[tuple[str, int], ...]) -> dict[str, slice]:
     """Index range of each block of `layout`."""
     slices, start = {}, 0
@@ -62,3 +79,29 @@ def policy_noise_scale() -> np.ndarray:
     for name, value in POLICY_NOISE.items():
         scale[slices[name]] = value
     return scale
+
+
+def _critic_affine() -> tuple[np.ndarray, np.ndarray]:
+    offset, scale = np.zeros(CRITIC_SIZE), np.ones(CRITIC_SIZE)
+    critic, policy = layout_slices(CRITIC_LAYOUT), layout_slices(POLICY_LAYOUT)
+    for name, factor in POLICY_BLOCK_SCALES.items():
+        scale[policy[name]] = factor  # policy_noiseless is the critic's first block
+    offset[critic["base_height"]] = robot.STANDING_HEIGHT
+    scale[critic["base_height"]] = HEIGHT_SCALE
+    scale[critic["foot_height_samples"]] = HEIGHT_SCALE
+    scale[critic["foot_contact_force"]] = 1.0 / BODY_WEIGHT
+    scale[critic["external_force"]] = 1.0 / MAX_EXTERNAL_FORCE
+    low, high = domain_bounds(WIDEST)
+    domain = slice(critic[f"domain_{next(iter(DOMAIN_SIZES))}"].start, CRITIC_SIZE)
+    offset[domain] = (low + high) / 2.0
+    scale[domain] = 2.0 / (high - low)
+    return offset.astype(np.float32), scale.astype(np.float32)
+
+
+CRITIC_OFFSET, CRITIC_SCALE = _critic_affine()
+"""The critic observation is `(value - CRITIC_OFFSET) * CRITIC_SCALE` of each entry's physical value."""
+
+
+def critic_in_units(critic: np.ndarray) -> np.ndarray:
+    """Critic observations (..., CRITIC_SIZE) back in physical units (N, m, rad, kg, s, ...)."""
+    return critic / CRITIC_SCALE + CRITIC_OFFSET

@@ -67,6 +67,15 @@ TRAIN = RandomizationRanges(
 TEST_LOAD: Range = (-3.0, 8.0)
 TEST_FRICTION: Range = (0.1, 2.0)
 TEST_COM: Range = (-0.07, 0.1)
+WIDEST = RandomizationRanges(
+    **{name: getattr(TRAIN, name) for name in ("link_mass_scale", "motor_strength", "kp_scale", "kd_scale")},
+    friction=TEST_FRICTION,
+    added_mass=TEST_LOAD,
+    com_offset=TEST_COM,
+    action_delay=TRAIN.action_delay,
+)
+"""Every domain parameter's widest range in the paper (training or test): the critic sees each scaled from
+this range to [-1, 1] (`zerith_gym.observations.CRITIC_SCALE`)."""
 
 
 @dataclass

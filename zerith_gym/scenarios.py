@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 
 from zerith_gym.commands import CommandRanges
-from zerith_gym.disturbances import NO_FORCE, ForceSchedule
+from zerith_gym.disturbances import NO_FORCE, ForceCycle, ForceProgram, ForceSchedule
 from zerith_gym.randomization import NOMINAL, TEST_COM, TEST_FRICTION, TEST_LOAD, TRAIN, RandomizationRanges
 from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec
 
@@ -19,7 +19,7 @@ class Scenario:
 
     name: str
     randomization: RandomizationRanges = NOMINAL
-    force: ForceSchedule = NO_FORCE
+    force: ForceProgram = NO_FORCE
     terrain: TerrainSpec = PLANE
     command: tuple[float, float, float] | None = None
     """A fixed command, or None to draw commands from `command_ranges` during the episode."""
@@ -30,6 +30,30 @@ _TEST_RANGES = replace(NOMINAL, added_mass=TEST_LOAD, friction=TEST_FRICTION, co
 _CONTINUOUS = {"magnitude": (0.0, 100.0), "period_steps": 5, "duration_steps": 5}
 _SUDDEN = {"magnitude": (150.0, 200.0), "period_steps": 100, "duration_steps": 5, "start_step": 100}
 _EVERY_HALF_SECOND = ForceSchedule("centroid", (0.0, 100.0), period_steps=25, duration_steps=25)
+
+
+ROBUST = Scenario(
+    "robust",
+    replace(
+        TRAIN,
+        added_mass=TEST_LOAD,
+        friction=TEST_FRICTION,
+        com_offset=TEST_COM,
+        push_interval_s=4.0,
+    ),
+    ForceCycle(
+        tuple(
+            ForceSchedule(target, **kind)
+            for target in ("centroid", "hands", "feet")
+            for kind in (_CONTINUOUS, _SUDDEN)
+        ),
+        phase_steps=100,
+    ),
+    command_ranges=CommandRanges(vx=(0.0, 1.0)),
+)
+"""The robust recipe's training scenario (not one of the paper's): Table 5's randomization with the test load,
+friction and CoM ranges, pushes every 4 s, commands up to 1 m/s, and the test forces taking turns every 2 s:
+continuous U[0, 100] N and sudden U[150, 200] N on the centroid, then the hands, then the feet."""
 
 
 def _build() -> dict[str, Scenario]:
@@ -61,6 +85,7 @@ def _build() -> dict[str, Scenario]:
             command=TEST_COMMAND,
         ),
         Scenario("uneven", terrain=UNEVEN, command=TEST_COMMAND),
+        ROBUST,
     ]
     return {s.name: s for s in scenarios}
 
@@ -99,10 +124,9 @@ def scaled_scenario(scenario: Scenario, scale: float) -> Scenario:
             )
         elif entry.name in ("init_roll_pitch", "observation_noise"):
             changes[entry.name] = scale * value
-    force = scenario.force
     return replace(
         scenario,
         name=f"{scenario.name}x{scale:g}",
         randomization=replace(ranges, **changes),
-        force=replace(force, magnitude=tuple(scale * m for m in force.magnitude)),
+        force=scenario.force.scaled(scale),
     )

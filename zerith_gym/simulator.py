@@ -52,10 +52,10 @@ class _Robot(NamedTuple):
     qvel: np.ndarray
     sensordata: np.ndarray
     bad_state_warnings: np.ndarray
-    force_rows: list[np.ndarray]  # xfrc_applied[body, :3] of each body the external force acts on
+    force_rows: list[list[np.ndarray]]  # per force target, xfrc_applied[body, :3] of each of its bodies
 
     @staticmethod
-    def of(model: mujoco.MjModel, force_bodies: list[int]) -> _Robot:
+    def of(model: mujoco.MjModel, force_bodies: list[list[int]]) -> _Robot:
         data = mujoco.MjData(model)
         return _Robot(
             model,
@@ -64,23 +64,23 @@ class _Robot(NamedTuple):
             data.qvel,
             data.sensordata,
             data.warning.number[BAD_STATE_WARNINGS],
-            [data.xfrc_applied[body, :3] for body in force_bodies],
+            [[data.xfrc_applied[body, :3] for body in bodies] for bodies in force_bodies],
         )
 
 
 class Simulator:
-    """The physics of `num_robots` robots on one terrain, with forces on the bodies of `force_target`.
+    """The physics of `num_robots` robots on one terrain, with external forces on the bodies of a target.
 
     `threads`: how many threads step the robots' physics (at most one per robot).
     """
 
-    def __init__(self, num_robots: int, terrain: Terrain, force_target: str, threads: int = 1) -> None:
+    def __init__(self, num_robots: int, terrain: Terrain, threads: int = 1) -> None:
         if not isinstance(threads, int | np.integer) or threads < 1:
             raise ValueError(f"the number of physics threads must be a positive integer, got {threads!r}")
         model = build_model(terrain)
         self.terrain = terrain
         self.models = [model] + [copy.copy(model) for _ in range(num_robots - 1)]
-        bodies = [model.body(name).id for name in FORCE_TARGETS[force_target]]
+        bodies = [[model.body(name).id for name in names] for names in FORCE_TARGETS.values()]
         self._robots = [_Robot.of(m, bodies) for m in self.models]
         self.datas = [robot_.data for robot_ in self._robots]
         self.nominal = NominalModel.capture(model, terrain)
@@ -89,6 +89,7 @@ class Simulator:
         self._qvel = np.zeros((num_robots, model.nv))
         self._segments: list[Segments] = [[(0, robot.DECIMATION)]] * num_robots
         self._warned = np.zeros(num_robots, dtype=bool)
+        self._force_target = [0] * num_robots  # the target whose bodies each robot's force was last set on
         groups = min(int(threads), num_robots)
         self._groups = [group.tolist() for group in np.array_split(np.arange(num_robots), groups)]
         self._pool = ThreadPoolExecutor(groups - 1, "zerith-physics") if groups > 1 else None
@@ -103,15 +104,18 @@ class Simulator:
             self._segments[i] = lag_segments(lags[k])
             self.sensordata[i] = datas[k].sensordata
 
-    def step(self, targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None) -> np.ndarray:
+    def step(
+        self, targets: np.ndarray, force: np.ndarray, force_target: np.ndarray, kicks: np.ndarray | None
+    ) -> np.ndarray:
         """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.
 
-        `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each target body;
+        `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each body of the
+        robot's `force_target` (n,) (an index of `FORCE_TARGETS`), none on the other targets' bodies;
         `kicks` (n, 2): horizontal velocity added to the base, or None. A simulation is unstable if
         MuJoCo raised a bad-state warning during the step (it then resets the state) or if it ends with
         non-finite velocities.
         """
-        inputs = (targets, force, kicks)
+        inputs = (targets, force, force_target.tolist(), kicks)
         if self._pool is None:
             self._step_robots(self._groups[0], *inputs)
         else:  # the calling thread steps the first group while the pool steps the others
@@ -129,12 +133,22 @@ class Simulator:
             self._groups = [list(range(len(self._robots)))]
 
     def _step_robots(
-        self, ids: list[int], targets: np.ndarray, force: np.ndarray, kicks: np.ndarray | None
+        self,
+        ids: list[int],
+        targets: np.ndarray,
+        force: np.ndarray,
+        force_target: list[int],
+        kicks: np.ndarray | None,
     ) -> None:
         """Step robots `ids`, writing their velocities, sensors and warning flags into the batch arrays."""
         for i in ids:
             sim = self._robots[i]
-            for row in sim.force_rows:
+            target = force_target[i]
+            if target != self._force_target[i]:  # the previous target's bodies are free again
+                for row in sim.force_rows[self._force_target[i]]:
+                    row[:] = 0.0
+                self._force_target[i] = target
+            for row in sim.force_rows[target]:
                 row[:] = force[i]
             if kicks is not None:
                 sim.qvel[:2] += kicks[i]

@@ -28,8 +28,10 @@ import numpy as np
 from zerith_gym import gait, robot
 from zerith_gym.arrays import namespace
 from zerith_gym.commands import COMMAND_DRAWS, command_bounds, commands_from_uniforms
-from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due, schedule_table
+from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due
 from zerith_gym.observations import (
+    CRITIC_OFFSET,
+    CRITIC_SCALE,
     CRITIC_SIZE,
     HEIGHT_SAMPLE_OFFSETS,
     POLICY_SIZE,
@@ -93,7 +95,8 @@ class ScenarioArrays(NamedTuple):
     due: np.ndarray  # (episode_steps, 4) bool, at each control step: force draw, force on, command draw, push
     domain_low: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
     domain_high: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
-    force_magnitude: np.ndarray  # (2,) N
+    force_magnitude: np.ndarray  # (episode_steps, 2) N, the range of a force drawn at each step
+    force_target: np.ndarray  # (episode_steps,) int, the target (`disturbances.TARGET_INDEX`) at each step
     push_velocity: np.ndarray  # (2,) m/s
     command_low: np.ndarray  # (3,)
     command_high: np.ndarray  # (3,)
@@ -112,9 +115,11 @@ def scenario_arrays(
     ranges = scenario.randomization
     command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
     steps = np.arange(episode_steps)
+    force = scenario.force.table(episode_steps)
     due = np.column_stack(
         [
-            *schedule_table(scenario.force, episode_steps),
+            force.draw,
+            force.on,
             (steps > 0) & (steps % command_interval == 0) & (command is None),
             push_due(episode_steps, round(ranges.push_interval_s / robot.CONTROL_DT), ranges.push_velocity),
         ]
@@ -125,7 +130,8 @@ def scenario_arrays(
         due=due,
         domain_low=domain_low,
         domain_high=domain_high,
-        force_magnitude=np.array(scenario.force.magnitude, dtype=float),
+        force_magnitude=force.magnitude,
+        force_target=force.target,
         push_velocity=np.array(ranges.push_velocity, dtype=float),
         command_low=low,
         command_high=high,
@@ -184,24 +190,30 @@ def action_targets(actions: np.ndarray) -> np.ndarray:
 class Disturbances(NamedTuple):
     """This control step's external force, command and base velocity kick of n robots."""
 
-    force: np.ndarray  # (n, 3) on each body of the scenario's force target
+    force: np.ndarray  # (n, 3) on each body of the force target
+    force_target: np.ndarray  # (n,) int, the bodies the force acts on (`disturbances.TARGET_INDEX`)
     command: np.ndarray  # (n, 3)
     kicks: np.ndarray  # (n, 2) horizontal velocity added to the base (zero unless a push is due)
+    push: np.ndarray  # (n,) bool, a push is due
 
 
 def step_disturbances(
-    uniforms: np.ndarray, due: np.ndarray, force: np.ndarray, command: np.ndarray, sc: ScenarioArrays
+    uniforms: np.ndarray, step_count: np.ndarray, force: np.ndarray, command: np.ndarray, sc: ScenarioArrays
 ) -> Disturbances:
-    """Redraw forces, commands and pushes where `due` (n, 4) says, from uniforms (n, STEP_DRAWS)."""
-    xp = namespace(uniforms, due)
-    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude)
+    """Redraw forces, commands and pushes where the scenario's tables say at each robot's episode step
+    `step_count` (n,), from uniforms (n, STEP_DRAWS)."""
+    xp = namespace(uniforms, step_count)
+    due = sc.due[step_count]
+    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude[step_count])
     drawn_command = commands_from_uniforms(
         uniforms[:, _COMMAND], sc.command_low, sc.command_high, sc.standing_probability
     )
     return Disturbances(
         force=xp.where(due[:, 0:1], drawn_force, force) * due[:, 1:2],
+        force_target=sc.force_target[step_count],
         command=xp.where(due[:, 2:3], drawn_command, command),
         kicks=horizontal_vectors(uniforms[:, _PUSH], sc.push_velocity)[:, :2] * due[:, 3:4],
+        push=due[:, 3],
     )
 
 
@@ -247,7 +259,7 @@ def observations(
     noise: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Policy and critic observations (float32) of n robots; `noise` (n, POLICY_SIZE) is added to the
-    policy's (None: noiseless)."""
+    policy's (None: noiseless). The policy's are in physical units, the critic's scaled by known ranges."""
     xp = namespace(r.base_up)
     up = r.base_up
     policy = xp.concatenate(
@@ -278,6 +290,7 @@ def observations(
         axis=1,
         dtype=np.float32,
     )
+    critic = (critic - CRITIC_OFFSET) * CRITIC_SCALE  # known scales (observations.CRITIC_SCALE)
     if noise is not None:
         policy = policy + noise
     return policy.astype(np.float32), critic
@@ -520,22 +533,20 @@ class ZerithTask:
         self.command[ids] = command
 
     # ------------------------------------------------------------------------------------- one step
-    def before_physics(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def before_physics(self, actions: np.ndarray) -> tuple[np.ndarray, Disturbances]:
         """Record actions (n, 12), already finite and clipped to [-1, 1]; draw this step's randomness.
 
-        Returns the joint targets of the last three actions (n, 3, 12) (index = control steps of lag),
-        the external force (n, 3) on the scenario's target bodies, and base velocity kicks (n, 2) or None.
+        Returns the joint targets of the last three actions (n, 3, 12) (index = control steps of lag) and
+        this step's disturbances: the external force (n, 3) and its target (n,), and base velocity kicks.
         """
         self.actions[:, 1:] = self.actions[:, :-1]
         self.actions[:, 0] = actions
         u = self._uniforms
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
-        due = self.arrays.due[self.step_count]
-        drawn = step_disturbances(u, due, self.force, self.command, self.arrays)
+        drawn = step_disturbances(u, self.step_count, self.force, self.command, self.arrays)
         self.force, self.command = drawn.force, drawn.command
-        push = bool(np.logical_or.reduce(due[:, 3]))
-        return action_targets(self.actions), self.force, drawn.kicks if push else None
+        return action_targets(self.actions), drawn
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""

@@ -169,7 +169,7 @@ class ZerithVecEnv(VecEnv):
         """Follow another scenario from now on, e.g. a curriculum's next stage (`scenarios.scaled_scenario`).
 
         Its randomization ranges apply from each robot's next reset; forces, pushes, observation noise
-        and command draws from the next step. Terrain and force target cannot change (ValueError).
+        and command draws from the next step. The terrain cannot change (ValueError).
         """
         scenario = resolve_scenario(scenario)
         self.robots.set_scenario(scenario)

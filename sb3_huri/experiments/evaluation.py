@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
-from zerith_gym.observations import CRITIC_LAYOUT, layout_slices
+from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
 from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
 
@@ -174,7 +174,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
             betas.append(assessed.risk[0] if first else np.nan)
             iqrs.append(assessed.iqr[0] if first else np.nan)
             atoms.append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
-            force = np.linalg.norm(obs["critic"][0, _CRITIC["external_force"]])
+            force = np.linalg.norm(critic_in_units(obs["critic"][0])[_CRITIC["external_force"]])
             forces.append(force if first else np.nan)
         action, _ = model.predict(policy_obs, deterministic=True)
         obs, _, dones, infos = env.step(action)
@@ -184,7 +184,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
                 for i, (info, d) in enumerate(zip(infos, dones, strict=True))
             ]
         )
-        vx[t, alive] = critic[alive, _CRITIC["base_linear_velocity"]][:, 0]
+        vx[t, alive] = critic_in_units(critic[alive])[:, _CRITIC["base_linear_velocity"]][:, 0]
         contact[t, alive] = critic[alive, _CRITIC["foot_contact"]] > 0.5
         lin_err[t, alive] = [infos[i]["lin_vel_error"] for i in np.flatnonzero(alive)]
         yaw_err[t, alive] = [infos[i]["ang_vel_error"] for i in np.flatnonzero(alive)]

@@ -108,7 +108,11 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param target_kl: stop an update early when the approximate KL divergence exceeds ``1.5 * target_kl``
     :param desired_kl: adapt the learning rate to this KL per minibatch (divided by 1.5 above twice the
         KL, multiplied by 1.5 below half of it, within ``kl_learning_rate_bounds``), as legged-robot PPO
-        trainers do; ``None`` follows ``learning_rate``
+        trainers do; ``None`` follows ``learning_rate``. With ``critic_learning_rate``, only the actor's
+        rate adapts
+    :param critic_learning_rate: the critic's own learning rate (a float or a schedule); ``None`` (default)
+        shares ``learning_rate``. A trust region on a narrow action noise needs a small actor rate, which
+        would stop the critic learning if it were shared (docs/huri.md)
     :param variant: preset, one of ``baseline``, ``cvar0.5``, ``huri-no-rnd``, ``huri-no-iqr``, ``huri``,
         ``huri-cvar`` (see ``sb3_huri.huri.variants``)
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
@@ -146,7 +150,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     }
     policy: HuRiPolicy
     rollout_buffer: HuRiRolloutBuffer | HuRiDictRolloutBuffer
-    kl_learning_rate_bounds: ClassVar[tuple[float, float]] = (1e-5, 1e-2)
+    kl_learning_rate_bounds: ClassVar[tuple[float, float]] = (1e-6, 1e-2)
     """Range of the KL-adaptive learning rate (``desired_kl``)."""
 
     def __init__(
@@ -169,6 +173,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         sde_sample_freq: int = -1,
         target_kl: float | None = None,
         desired_kl: float | None = None,
+        critic_learning_rate: float | Schedule | None = None,
         variant: str = "huri",
         n_quantiles: int | None = None,
         distortion: str | None = None,
@@ -208,6 +213,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
         self.expectation_loss = expectation_loss
         self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
+        self.critic_learning_rate = critic_learning_rate
         self.kl_learning_rate: float | None = None  # set by the first update with desired_kl
         _check_hyperparameters(
             n_steps=n_steps,
@@ -221,6 +227,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             expectation_coef=expectation_coef,
             expectation_loss=expectation_loss,
             desired_kl=desired_kl,
+            critic_learning_rate=critic_learning_rate,
             iqr_thresholds=self.iqr_thresholds,
             iqr_risk_levels=self.iqr_risk_levels,
             **({"n_quantiles": self.n_quantiles} if self.distributional else {}),
@@ -292,6 +299,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         )
         self.policy = self.policy.to(self.device)
         self.clip_range = FloatSchedule(self.clip_range)
+        self.critic_lr_schedule = (
+            None if self.critic_learning_rate is None else FloatSchedule(self.critic_learning_rate)
+        )
 
     def _complete_policy_kwargs(self) -> None:
         """Put the critic's width and the RND settings into ``policy_kwargs``, so a saved model rebuilds them.
@@ -300,6 +310,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         with only network options still gets the saved model's critic and RND.
         """
         kwargs = dict(self.policy_kwargs)
+        if getattr(self, "critic_learning_rate", None) is not None:
+            kwargs["critic_param_group"] = True  # the optimizer's second group: the critic's own rate
         if kwargs.setdefault("n_quantiles", self.n_quantiles) != self.n_quantiles:
             raise ValueError(
                 f"policy_kwargs['n_quantiles']={kwargs['n_quantiles']} does not match the critic of "
@@ -523,7 +535,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         """
         self.policy.set_training_mode(True)
         if self.desired_kl is None:
-            self._update_learning_rate(self.policy.optimizer)
+            self._set_learning_rates(self.lr_schedule(self._current_progress_remaining))
         else:  # starts from the schedule's value, then carries over from update to update
             self._set_kl_learning_rate(
                 self.kl_learning_rate or self.lr_schedule(self._current_progress_remaining)
@@ -531,6 +543,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
         logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
+        actor_rates: list[float] = []  # the rate of each minibatch's step (desired_kl)
         continue_training = True
 
         for epoch in range(self.n_epochs):
@@ -567,6 +580,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                     break
                 if self.desired_kl is not None:
                     self._adapt_learning_rate(approx_kl_div)
+                    actor_rates.append(self.kl_learning_rate)
 
                 self.policy.optimizer.zero_grad()
                 loss.backward()
@@ -598,7 +612,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
         if self.desired_kl is not None:
-            self.logger.record("train/learning_rate", self.kl_learning_rate)
+            # The rate rises and falls within an update (the KL is ~0 at its first minibatch): its mean.
+            self.logger.record("train/learning_rate", float(np.mean(actor_rates or [self.kl_learning_rate])))
+        if self.critic_lr_schedule is not None:
+            self.logger.record(
+                "train/critic_learning_rate", self.critic_lr_schedule(self._current_progress_remaining)
+            )
 
     def _critic_loss(
         self, outputs: th.Tensor, data: HuRiRolloutBufferSamples, logs: dict[str, list]
@@ -627,7 +646,17 @@ class HuRiPPO(OnPolicyAlgorithm):
 
     def _set_kl_learning_rate(self, learning_rate: float) -> None:
         self.kl_learning_rate = learning_rate
-        update_learning_rate(self.policy.optimizer, learning_rate)
+        self._set_learning_rates(learning_rate)
+
+    def _set_learning_rates(self, learning_rate: float) -> None:
+        """Set the optimizer's rate: ``learning_rate`` everywhere, or on the actor with the critic's own."""
+        self.logger.record("train/learning_rate", learning_rate)
+        if self.critic_lr_schedule is None:
+            update_learning_rate(self.policy.optimizer, learning_rate)
+            return
+        critic_rate = self.critic_lr_schedule(self._current_progress_remaining)
+        for group in self.policy.optimizer.param_groups:
+            group["lr"] = critic_rate if group.get("name") == "critic" else learning_rate
 
     def learn(
         self: SelfHuRiPPO,
@@ -698,6 +727,10 @@ _RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "expectation_coef": (lambda v: v >= 0.0, ">= 0"),
     "expectation_loss": (lambda v: v in EXPECTATION_LOSSES, f"one of {EXPECTATION_LOSSES}"),
     "desired_kl": (lambda v: v is None or v > 0.0, "None or > 0"),
+    "critic_learning_rate": (
+        lambda v: v is None or callable(v) or (isinstance(v, int | float) and v > 0.0),
+        "None, a float > 0 or a schedule",
+    ),
     "iqr_thresholds": (
         lambda v: len(v) == 2 and 0.0 <= v[0] <= v[1],
         "(t_min, t_max) with 0 <= t_min <= t_max",

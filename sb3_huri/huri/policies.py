@@ -97,6 +97,8 @@ class HuRiPolicy(ActorCriticPolicy):
     :param n_quantiles: number of critic atoms; 1 gives a scalar value head (usable by SB3's ``PPO``)
     :param rnd_kwargs: keyword arguments of a :class:`RandomNetworkDistillation` over the critic's input,
         kept as ``self.rnd``; ``None`` (default) for no RND
+    :param critic_param_group: give the critic's parameters a parameter group of their own in the
+        optimizer (named ``"critic"``; the rest is ``"actor"``), so that they can learn at another rate
     """
 
     def __init__(
@@ -108,6 +110,7 @@ class HuRiPolicy(ActorCriticPolicy):
         activation_fn: type[nn.Module] = nn.ELU,
         n_quantiles: int = 64,
         rnd_kwargs: dict[str, Any] | None = None,
+        critic_param_group: bool = False,
         features_extractor_class: type[BaseFeaturesExtractor] | None = None,
         **kwargs: Any,
     ):
@@ -117,6 +120,7 @@ class HuRiPolicy(ActorCriticPolicy):
             )
         # Read by _build(), which the parent constructor calls.
         self.n_quantiles = int(n_quantiles)
+        self.critic_param_group = bool(critic_param_group)
         if features_extractor_class is None:
             is_dict = isinstance(observation_space, spaces.Dict)
             features_extractor_class = PolicyCriticExtractor if is_dict else FlattenExtractor
@@ -151,15 +155,30 @@ class HuRiPolicy(ActorCriticPolicy):
             self.value_net = nn.Linear(self.mlp_extractor.latent_dim_vf, self.n_quantiles)
             if self.ortho_init:
                 self.init_weights(self.value_net, gain=1.0)
+        if self.n_quantiles != 1 or self.critic_param_group:  # rebuilt over the new head or in groups
             self.optimizer = self.optimizer_class(
-                self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
+                self._parameter_groups(), lr=lr_schedule(1), **self.optimizer_kwargs
             )
+
+    def critic_parameters(self) -> list[nn.Parameter]:
+        """The parameters only the critic uses: its MLP and value head."""
+        return [*self.mlp_extractor.value_net.parameters(), *self.value_net.parameters()]
+
+    def _parameter_groups(self) -> Any:
+        """Every parameter (the RND predictor has its own optimizer), as actor and critic groups if asked."""
+        if not self.critic_param_group:
+            return self.parameters()
+        critic = self.critic_parameters()
+        critic_ids = {id(p) for p in critic}
+        actor = [p for p in self.parameters() if id(p) not in critic_ids]
+        return [{"params": actor, "name": "actor"}, {"params": critic, "name": "critic"}]
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
         data.update(
             n_quantiles=self.n_quantiles,
             rnd_kwargs=self.rnd_kwargs,
+            critic_param_group=self.critic_param_group,
             share_features_extractor=self.share_features_extractor,
         )
         return data

@@ -77,7 +77,7 @@ class MjxBatch:
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
-        self.physics = MjxPhysics(self.terrain, self.scenario.force.target, solver)
+        self.physics = MjxPhysics(self.terrain, solver)
         model = self.physics.model
         self.sensors = robot.Sensors.layout(model)
         self.constants: TaskConstants = task_constants(
@@ -190,9 +190,15 @@ class MjxBatch:
         key, draw, restart = jax.random.split(state.key, 3)
         u = jax.random.uniform(draw, (n, STEP_DRAWS))
         history = jnp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
-        drawn = step_disturbances(u, sc.due[state.step_count], state.force, state.command, sc)
+        drawn = step_disturbances(u, state.step_count, state.force, state.command, sc)
         data, unstable = jax.vmap(self.physics.control_step)(
-            state.fields, state.data, action_targets(history), state.lags, drawn.force, drawn.kicks
+            state.fields,
+            state.data,
+            action_targets(history),
+            state.lags,
+            drawn.force,
+            drawn.force_target,
+            drawn.kicks,
         )
         sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
         readings = self.sensors.read(sensordata)

@@ -45,15 +45,13 @@ class SolverSettings:
 
 
 class MjxPhysics:
-    """The Zerith-1 model on the device, for one terrain and force target.
+    """The Zerith-1 model on the device, for one terrain.
 
     `model` (CPU, with the contact sensors) gives the sensor layout and the nominal values; `device_model`
     is the MJX model without the contact sensors.
     """
 
-    def __init__(
-        self, terrain: Terrain, force_target: str, solver: SolverSettings = SolverSettings()
-    ) -> None:
+    def __init__(self, terrain: Terrain, solver: SolverSettings = SolverSettings()) -> None:
         self.terrain = terrain
         self.model = build_model(terrain)
         self.nominal = NominalModel.capture(self.model, terrain)
@@ -67,7 +65,10 @@ class MjxPhysics:
         self.device_model = mjx.put_model(stripped)
         self._template = mjx.make_data(self.device_model)
         self._check_sensor_layout(stripped)
-        self._force_bodies = np.array([self.model.body(name).id for name in FORCE_TARGETS[force_target]])
+        # Which bodies each force target pushes: (targets, nbody) of 0 / 1.
+        self._force_mask = np.zeros((len(FORCE_TARGETS), self.model.nbody))
+        for index, names in enumerate(FORCE_TARGETS.values()):
+            self._force_mask[index, [self.model.body(name).id for name in names]] = 1.0
         self._soles = self.nominal.sole_geoms
         self._sole_radius = jnp.asarray(self.nominal.sole_radius)
         self._contacts = _ContactMap.of(self.model, self._template, terrain.ground_geoms)
@@ -100,15 +101,18 @@ class MjxPhysics:
         targets: jax.Array,
         lags: jax.Array,
         force: jax.Array,
+        force_target: jax.Array,
         kicks: jax.Array,
     ) -> tuple[mjx.Data, jax.Array]:
         """One control step of one robot: sub-step j applies `targets[lags[j]]` (targets (3, 12) by lag).
 
-        `force` (3,) acts on each body of the force target, `kicks` (2,) is added to the base's
-        horizontal velocity. Returns the data and whether the simulation became unstable.
+        `force` (3,) acts on each body of force target `force_target` (an index of `FORCE_TARGETS`),
+        `kicks` (2,) is added to the base's horizontal velocity. Returns the data and whether the
+        simulation became unstable.
         """
         model = self.with_fields(fields)
-        xfrc = data.xfrc_applied.at[self._force_bodies, :3].set(force)
+        on_body = jnp.asarray(self._force_mask)[force_target]  # (nbody,)
+        xfrc = data.xfrc_applied.at[:, :3].set(on_body[:, None] * force)
         data = data.replace(xfrc_applied=xfrc, qvel=data.qvel.at[:2].add(kicks))
 
         def substep(data: mjx.Data, lag: jax.Array) -> tuple[mjx.Data, jax.Array]:

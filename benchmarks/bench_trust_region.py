@@ -1,0 +1,164 @@
+"""PPO's trust region on Zerith1-v0: learning-rate arms side by side, several seeds, from scratch.
+
+Each arm trains HuRiPPO from scratch with a preset (default: the robust preset, `hyperparams/huri_robust.yml`)
+with some of its entries replaced, in a fixed scenario (no curriculum), and records per update the
+approximate KL, the clip fraction, the critic's explained variance, the action noise, the learning rates and
+the mean training episode length. The arms:
+
+- `shared`: one learning rate (3e-4) for actor and critic, no KL control (the walking preset's update);
+- `kl-shared`: `desired_kl` (default 0.01) adapting the one rate that actor and critic share;
+- `kl-actor`: `desired_kl` adapting the actor's rate only; the critic at its own 3e-4.
+
+    python benchmarks/bench_trust_region.py --steps 300000 --seeds 0 1 --output trust.jsonl
+    python benchmarks/bench_trust_region.py --summary trust.jsonl     # the table of a finished file
+
+The summary gives, per arm, the mean over seeds of each run's median over its updates (and the runs'
+range), and the mean episode length over the first and last 10% of each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecNormalize
+
+import zerith_gym
+from sb3_huri import HuRiPPO
+from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from zerith_gym.scenarios import get_scenario, scaled_scenario
+
+REPO = Path(__file__).resolve().parents[1]
+ENV_ID = "Zerith1-v0"
+ARMS: dict[str, dict] = {
+    "shared": {"desired_kl": None, "critic_learning_rate": None, "learning_rate": 3e-4},
+    "kl-shared": {"desired_kl": 0.01, "critic_learning_rate": None, "learning_rate": 3e-4},
+    "kl-actor": {"desired_kl": 0.01, "critic_learning_rate": 3e-4, "learning_rate": 3e-4},
+}
+RECORDED = (
+    "approx_kl",
+    "clip_fraction",
+    "explained_variance",
+    "std",
+    "learning_rate",
+    "critic_learning_rate",
+)
+
+
+class UpdateRecorder(BaseCallback):
+    """One row per update: the update's figures (SB3's logger) and the mean length of recent episodes."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rows: list[dict[str, float]] = []
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        values = self.model.logger.name_to_value
+        if "train/approx_kl" not in values:
+            return
+        lengths = [info["l"] for info in self.model.ep_info_buffer]
+        row = {
+            "timesteps": self.num_timesteps,
+            "ep_len": float(np.mean(lengths)) if lengths else float("nan"),
+        }
+        row.update({key: float(values[f"train/{key}"]) for key in RECORDED if f"train/{key}" in values})
+        self.rows.append(row)
+
+
+def train_arm(
+    preset_file: Path, arm: str, seed: int, steps: int, scenario: str, scale: float, desired_kl: float
+) -> dict:
+    """Train one arm from scratch for `steps` steps and return its per-update rows."""
+    preset = read_preset(ENV_ID, preset_file)
+    kwargs = {**algorithm_kwargs(preset), **ARMS[arm]}
+    if kwargs["desired_kl"] is not None:
+        kwargs["desired_kl"] = desired_kl
+    env_kwargs = {k: v for k, v in (preset.get("env_kwargs") or {}).items() if k != "scenario"}
+    env = zerith_gym.make_vec_env(
+        int(preset["n_envs"]),
+        seed=seed,
+        scenario=scaled_scenario(get_scenario(scenario), scale),
+        **env_kwargs,
+    )
+    env = VecNormalize(env, gamma=kwargs.get("gamma", 0.99), **(normalize_kwargs(preset) or {}))
+    model = HuRiPPO(preset["policy"], env, seed=seed, device="cpu", **kwargs)
+    recorder = UpdateRecorder()
+    began = time.time()
+    model.learn(steps, callback=recorder)
+    env.close()
+    return {
+        "arm": arm,
+        "seed": seed,
+        "desired_kl": kwargs["desired_kl"],
+        "steps": steps,
+        "scenario": f"{scenario}x{scale:g}",
+        "wall_s": round(time.time() - began, 1),
+        "rows": recorder.rows,
+    }
+
+
+def summarize(results: list[dict]) -> str:
+    """Per arm: mean over seeds of each run's median per update, with the runs' range; episode lengths."""
+    header = "| arm | seeds | approx_kl | clip fraction | explained var. | std | ep len first -> last 10% |"
+    lines = [header, "|---|---|---|---|---|---|---|"]
+    for arm, kl in dict.fromkeys((r["arm"], r.get("desired_kl")) for r in results):
+        runs = [r for r in results if (r["arm"], r.get("desired_kl")) == (arm, kl)]
+        cells = []
+        for key in ("approx_kl", "clip_fraction", "explained_variance", "std"):
+            medians = [float(np.median([row[key] for row in r["rows"]])) for r in runs]
+            cells.append(f"{np.mean(medians):.3g} ({min(medians):.3g}-{max(medians):.3g})")
+        first, last = [], []
+        for r in runs:
+            lengths = np.array([row["ep_len"] for row in r["rows"]])
+            tenth = max(len(lengths) // 10, 1)
+            first.append(np.nanmean(lengths[:tenth]))
+            last.append(np.nanmean(lengths[-tenth:]))
+        seeds = ", ".join(str(r["seed"]) for r in runs)
+        name = arm if kl is None else f"{arm} {kl:g}"
+        lengths = f"{np.mean(first):.0f} -> {np.mean(last):.0f}"
+        lines.append(f"| {name} | {seeds} | {' | '.join(cells)} | {lengths} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--preset", type=Path, default=REPO / "hyperparams" / "huri_robust.yml")
+    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=list(ARMS))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--desired-kl", type=float, default=0.01, help="KL target of the kl-* arms")
+    parser.add_argument("--scenario", default="train")
+    parser.add_argument(
+        "--scale", type=float, default=1.0, help="randomization and force scale of the scenario"
+    )
+    parser.add_argument("--output", type=Path, default=None, help="append one JSON line per run here")
+    parser.add_argument("--summary", type=Path, default=None, help="only print the table of this file")
+    args = parser.parse_args()
+    if args.summary:
+        print(summarize([json.loads(line) for line in args.summary.read_text().splitlines()]))
+        return
+    th.set_num_threads(1)
+    results = []
+    for seed in args.seeds:
+        for arm in args.arms:
+            result = train_arm(args.preset, arm, seed, args.steps, args.scenario, args.scale, args.desired_kl)
+            results.append(result)
+            print(json.dumps({k: v for k, v in result.items() if k != "rows"}), flush=True)
+            if args.output:
+                with args.output.open("a") as file:
+                    file.write(json.dumps(result) + "\n")
+    print(summarize(results))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""Training that spans sessions: the newest checkpoint of a run, its learning curve, and resuming it.
+
+A run folder in RL Zoo's layout (``sb3_huri.zoo.runs``) gets, besides the model and its normalizer:
+
+- ``<env_id>/state.json``: steps, the curriculum's stage, and one entry per training session (when, how many
+  steps, wall time, hardware), so a run's cost adds up honestly across sessions;
+- ``<env_id>/rng.pt``: the random states of torch, numpy and Python at the checkpoint;
+- ``curve.csv``: one row per rollout (steps, cumulative wall time, episode length and return, fall rate,
+  curriculum scale, and the previous update's KL, clip fraction, explained variance, action noise and
+  learning rates).
+
+``RunCheckpoint`` writes them every ``every_steps`` env steps and when training ends; ``resume_state`` reads
+them back. A resumed run restores the model, normalizer, random states and curriculum stage; its robots are
+reseeded from the run's seed and step count, so resuming from a checkpoint is reproducible, though not
+the same draws as a run that was never interrupted.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import random
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
+
+from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
+
+CURVE_FILE = "curve.csv"
+CURVE_COLUMNS = (
+    "timesteps", "wall_s", "ep_len", "ep_return", "fall_rate", "scale",
+    "approx_kl", "clip_fraction", "explained_variance", "std", "learning_rate", "critic_learning_rate",
+)  # fmt: skip
+_TRAIN_COLUMNS = CURVE_COLUMNS[6:]
+
+
+@dataclass
+class RunState:
+    """What a checkpoint records beside the model: progress, curriculum stage and the sessions so far."""
+
+    timesteps: int = 0
+    curriculum_stage: int | None = None
+    wall_s: float = 0.0
+    sessions: list[dict[str, Any]] = field(default_factory=list)
+
+    @staticmethod
+    def read(run: str | os.PathLike, env_id: str = DEFAULT_ENV_ID) -> RunState:
+        """The run's state, or a new one if the run has none yet."""
+        path = Path(run) / env_id / "state.json"
+        return RunState(**json.loads(path.read_text())) if path.is_file() else RunState()
+
+
+def hardware() -> str:
+    """This machine in a few words: processor, cores, torch device."""
+    device = th.cuda.get_device_name(0) if th.cuda.is_available() else "no GPU"
+    return f"{platform.machine()} {platform.processor() or ''} {os.cpu_count()} cores, {device}".replace(
+        "  ", " "
+    )
+
+
+def restore_random_states(run: str | os.PathLike, env_id: str = DEFAULT_ENV_ID) -> bool:
+    """Restore torch, numpy and Python random states saved with the run's checkpoint; False if none."""
+    path = Path(run) / env_id / "rng.pt"
+    if not path.is_file():
+        return False
+    states = th.load(path, weights_only=False)
+    th.set_rng_state(states["torch"])
+    np.random.set_state(states["numpy"])  # noqa: NPY002 (SB3 shuffles minibatches with the global state)
+    random.setstate(states["python"])
+    return True
+
+
+class RunCheckpoint(BaseCallback):
+    """Writes the run's newest checkpoint every `every_steps` env steps and at the end, and its curve.
+
+    :param run: the run folder (RL Zoo's layout)
+    :param preset: the hyperparameters (``config.yml``)
+    :param run_args: the run's arguments (``args.yml``)
+    :param every_steps: env steps between checkpoints
+    :param curriculum: the run's curriculum callback, whose stage is saved (None: no curriculum)
+    :param max_wall_s: stop training (with a checkpoint) after this many seconds of this session
+    """
+
+    def __init__(
+        self,
+        run: str | os.PathLike,
+        preset: dict[str, Any],
+        run_args: dict[str, Any],
+        every_steps: int,
+        curriculum: Any | None = None,
+        max_wall_s: float | None = None,
+        env_id: str = DEFAULT_ENV_ID,
+        verbose: int = 0,
+    ) -> None:
+        super().__init__(verbose)
+        if every_steps < 1:
+            raise ValueError(f"every_steps must be a positive number of env steps, got {every_steps!r}")
+        self.run, self.preset, self.run_args = Path(run), preset, run_args
+        self.every_steps, self.curriculum, self.max_wall_s = every_steps, curriculum, max_wall_s
+        self.env_id = env_id
+        self.state = RunState.read(self.run, env_id)
+        self._began = self._last_save = 0.0
+        self._saved_at = 0
+        self._episodes = self._falls = 0
+        self._session: dict[str, Any] = {}
+
+    @property
+    def wall_s(self) -> float:
+        """Training wall time of the run so far, all sessions."""
+        return self.state.wall_s + time.time() - self._began
+
+    def _on_training_start(self) -> None:
+        self._began = time.time()
+        self._saved_at = self.num_timesteps
+        self._session = {
+            "started": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "from_timesteps": self.num_timesteps,
+            "hardware": hardware(),
+        }
+        self.state.sessions.append(self._session)
+
+    def _on_step(self) -> bool:
+        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
+            if done:
+                self._episodes += 1
+                self._falls += bool(info.get("fall", False))
+        if self.num_timesteps - self._saved_at >= self.every_steps:
+            self.save()
+        return self.max_wall_s is None or time.time() - self._began < self.max_wall_s
+
+    def _on_rollout_end(self) -> None:
+        values = self.model.logger.name_to_value
+        episodes = list(self.model.ep_info_buffer)
+        row = {
+            "timesteps": self.num_timesteps,
+            "wall_s": round(self.wall_s, 1),
+            "ep_len": np.mean([e["l"] for e in episodes]) if episodes else np.nan,
+            "ep_return": np.mean([e["r"] for e in episodes]) if episodes else np.nan,
+            "fall_rate": self._falls / self._episodes if self._episodes else np.nan,
+            "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
+            **{key: values.get(f"train/{key}", np.nan) for key in _TRAIN_COLUMNS},
+        }
+        self._episodes = self._falls = 0
+        path = self.run / CURVE_FILE
+        new = not path.is_file()
+        self.run.mkdir(parents=True, exist_ok=True)
+        with path.open("a", newline="") as file:
+            writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
+            if new:
+                writer.writeheader()
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+    def _on_training_end(self) -> None:
+        self.save()
+
+    def save(self) -> None:
+        """Model, normalizer, preset, arguments, state and random states, replacing the previous ones."""
+        wall = self.wall_s
+        save_run(self.model, self.run, self.preset, self.run_args, self.env_id)
+        self._session.update(to_timesteps=self.num_timesteps, wall_s=round(time.time() - self._began, 1))
+        state = RunState(
+            timesteps=self.num_timesteps,
+            curriculum_stage=getattr(self.curriculum, "stage", None),
+            wall_s=round(wall, 1),
+            sessions=self.state.sessions,
+        )
+        (self.run / self.env_id / "state.json").write_text(json.dumps(asdict(state), indent=1) + "\n")
+        th.save(
+            {"torch": th.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()},  # noqa: NPY002
+            self.run / self.env_id / "rng.pt",
+        )
+        self._saved_at = self.num_timesteps
+        if self.verbose:
+            print(f"checkpoint: {self.num_timesteps} steps, {wall:.0f} s of training, in {self.run}")

@@ -1,0 +1,106 @@
+"""Training across sessions: newest checkpoint, learning curve, random states and curriculum stage, resumed
+by `examples/train_zerith.py --resume` (sb3_huri.zoo.checkpoints)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+import yaml
+
+from sb3_huri import HuRiPPO
+from sb3_huri.zoo.checkpoints import CURVE_COLUMNS, RunState, restore_random_states
+from zerith_gym.callbacks import RandomizationCurriculum
+
+ROOT = Path(__file__).resolve().parent.parent
+TRAIN = [sys.executable, str(ROOT / "examples" / "train_zerith.py")]
+
+
+def _tiny_robust_preset(folder: Path) -> Path:
+    presets = yaml.safe_load((ROOT / "hyperparams" / "huri_robust.yml").read_text())
+    preset = presets["Zerith1-v0"]
+    preset.update(n_envs=4, n_steps=16, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
+    # A curriculum that may rise a stage per rollout, held back only by falls.
+    preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
+        steps=64, stages=4, max_fall_rate=1.0
+    )
+    path = folder / "tiny.yml"
+    path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
+    return path
+
+
+def _train(*args: str) -> None:
+    result = subprocess.run(
+        [*TRAIN, "--workers", "0", *args], capture_output=True, text=True, timeout=600, env=os.environ.copy()
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+
+
+def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage(tmp_path):
+    preset = _tiny_robust_preset(tmp_path)
+    _train("-conf", str(preset), "-f", str(tmp_path), "-n", "256", "--checkpoint-freq", "128", "--seed", "3")
+    run = tmp_path / "huri" / "Zerith1-v0_1"
+    first = RunState.read(run)
+    assert first.timesteps == 256 and len(first.sessions) == 1 and first.sessions[0]["to_timesteps"] == 256
+    assert first.curriculum_stage is not None and first.curriculum_stage >= 1
+    saved = HuRiPPO.load(run / "Zerith1-v0.zip")
+    assert saved.num_timesteps == 256 and saved.desired_kl == 0.007
+
+    _train("--resume", str(run), "-n", "128", "--checkpoint-freq", "128")  # algo, seed and preset: the run's
+    second = RunState.read(run)
+    assert second.timesteps == 384 and len(second.sessions) == 2
+    assert second.sessions[1]["from_timesteps"] == 256 and second.wall_s >= first.wall_s
+    assert second.curriculum_stage >= first.curriculum_stage
+    assert yaml.safe_load((run / "Zerith1-v0" / "args.yml").read_text())["seed"] == 3
+
+    with (run / "curve.csv").open() as file:
+        rows = list(csv.DictReader(file))
+    assert list(rows[0]) == list(CURVE_COLUMNS)
+    assert [int(r["timesteps"]) for r in rows] == list(range(64, 385, 64))
+    walls = [float(r["wall_s"]) for r in rows]
+    assert walls == sorted(walls)  # the resumed session's times continue the first's
+    assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == [
+        f"rl_model_{steps}_steps.zip" for steps in (128, 256, 384)
+    ]
+
+
+def test_random_states_come_back_from_a_checkpoint(tmp_path):
+    preset = _tiny_robust_preset(tmp_path)
+    _train("-conf", str(preset), "-f", str(tmp_path), "-n", "64", "--checkpoint-freq", "64")
+    run = tmp_path / "huri" / "Zerith1-v0_1"
+    assert restore_random_states(run)
+    expected = (th.rand(3), np.random.rand(3))  # noqa: NPY002 (the global state SB3 uses)
+    restore_random_states(run)
+    np.testing.assert_array_equal(th.rand(3), expected[0])
+    np.testing.assert_array_equal(np.random.rand(3), expected[1])  # noqa: NPY002
+    assert not restore_random_states(tmp_path)
+    state = json.loads((run / "Zerith1-v0" / "state.json").read_text())
+    assert state["sessions"][0]["hardware"]
+
+
+@pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
+def test_a_resumed_curriculum_goes_on_from_its_stage():
+    """The first rollout of a resumed run trains at the stage the run had reached, not at the schedule's."""
+    import zerith_gym
+
+    env = zerith_gym.make_vec_env(2, seed=0, scenario="robust", workers=0)
+    model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
+    model.num_timesteps = 900  # the schedule would allow stage 3 of 4
+    curriculum = RandomizationCurriculum(steps=1000, stages=4, max_fall_rate=0.2, start_stage=2)
+    model.learn(16, callback=curriculum, reset_num_timesteps=False)
+    assert curriculum.stage == 2 and env.get_attr("scenario")[0].name == "robustx0.5"
+    with pytest.raises(ValueError, match=r"start_stage must be an integer in \[0, stages=4\]"):
+        RandomizationCurriculum(steps=1000, stages=4, start_stage=5)
+    env.close()
+
+
+def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):
+    result = subprocess.run([*TRAIN, "--resume", str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0 and "no Zerith1-v0.zip there" in result.stderr

@@ -1,0 +1,114 @@
+"""The robust recipe's parts: the critic's known input scales, forces taking turns between targets, the
+`robust` scenario and its preset (hyperparams/huri_robust.yml)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import VecNormalize
+
+import zerith_gym
+from sb3_huri import HuRiPPO
+from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from zerith_gym.disturbances import FORCE_TARGETS, TARGET_INDEX, ForceCycle, ForceSchedule
+from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SCALE, critic_in_units, layout_slices
+from zerith_gym.randomization import WIDEST, domain_bounds
+from zerith_gym.scenarios import SCENARIOS, scaled_scenario
+
+ROBUST_PRESET = Path(__file__).resolve().parent.parent / "hyperparams" / "huri_robust.yml"
+CRITIC = layout_slices(CRITIC_LAYOUT)
+DOMAIN = slice(CRITIC["domain_friction"].start, CRITIC["domain_action_delay"].stop)
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_no_critic_input_saturates_in_any_scenario(name):
+    """Domain parameters and the external force stay in [-1, 1] at every scenario's full ranges (the test
+    ranges included), and no critic input reaches 10 (VecNormalize's clip) while robots stumble and fall under
+    random actions: contact forces at touchdowns reach about 6 body weights, the others stay within 3."""
+    env = zerith_gym.make_vec_env(8, seed=0, scenario=name, workers=0)
+    rng = np.random.default_rng(0)
+    obs, largest = env.reset(), 0.0
+    for _ in range(150):
+        obs, *_ = env.step(rng.normal(scale=0.1, size=(8, 12)))
+        critic = obs["critic"]
+        assert np.isfinite(critic).all()
+        assert np.abs(critic[:, DOMAIN]).max() <= 1.0 + 1e-6
+        assert np.abs(critic[:, CRITIC["external_force"]]).max() <= 1.0 + 1e-6
+        largest = max(largest, float(np.abs(critic).max()))
+    env.close()
+    assert largest < 10.0
+
+
+def test_critic_scales_map_the_widest_domain_ranges_onto_minus_one_to_one():
+    low, high = domain_bounds(WIDEST)
+    ends = np.stack([np.full(CRITIC_SCALE.size, -1.0), np.full(CRITIC_SCALE.size, 1.0)])
+    np.testing.assert_allclose(critic_in_units(ends)[:, DOMAIN], np.stack([low, high]), rtol=1e-6, atol=1e-7)
+    assert CRITIC_SCALE[CRITIC["external_force"]] == pytest.approx(1 / 200)
+
+
+def test_a_force_cycle_takes_turns_between_its_schedules():
+    continuous = ForceSchedule("hands", (0.0, 100.0), period_steps=5, duration_steps=5)
+    sudden = ForceSchedule("feet", (150.0, 200.0), period_steps=100, duration_steps=5, start_step=100)
+    table = ForceCycle((continuous, sudden), phase_steps=100).table(400)
+    steps = np.arange(400)
+    in_sudden = (steps // 100) % 2 == 1
+    targets = np.where(in_sudden, TARGET_INDEX["feet"], TARGET_INDEX["hands"])
+    np.testing.assert_array_equal(table.target, targets)
+    np.testing.assert_array_equal(table.draw, np.where(in_sudden, steps % 100 == 0, steps % 5 == 0))
+    np.testing.assert_array_equal(table.on, np.where(in_sudden, steps % 100 < 5, True))
+    np.testing.assert_array_equal(table.magnitude[:, 1], np.where(in_sudden, 200.0, 100.0))
+    with pytest.raises(ValueError, match="phase_steps must be a positive integer"):
+        ForceCycle((continuous,), phase_steps=0)
+    with pytest.raises(ValueError, match="one or more ForceSchedule"):
+        ForceCycle(())
+
+
+def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
+    """Each step, the force of `info["external_force"]` acts on each body of the scheduled target and on
+    no other body, robot by robot (their episodes are at different steps after falls)."""
+    gentle = scaled_scenario(SCENARIOS["robust"], 0.2)  # robots with zero actions stand through it
+    env = zerith_gym.make_vec_env(4, seed=0, scenario=gentle, workers=0)
+    table = gentle.force.table(1000)
+    sim = env.robots.sim
+    bodies = {target: [sim.models[0].body(b).id for b in names] for target, names in FORCE_TARGETS.items()}
+    env.reset()
+    seen = set()
+    for _ in range(520):  # the feet phases start at step 400
+        step_count = env.robots.task.step_count.copy()  # the episode step about to be simulated
+        _, _, _, infos = env.step(np.zeros((4, 12)))
+        for i, info in enumerate(infos):
+            target = list(FORCE_TARGETS)[table.target[step_count[i]]]
+            applied = sim.datas[i].xfrc_applied[:, :3]
+            if info["fall"] or info.get("TimeLimit.truncated"):
+                continue  # reset after the step
+            for name, ids in bodies.items():
+                expected = info["external_force"] if name == target else np.zeros(3)
+                np.testing.assert_allclose(applied[ids], np.broadcast_to(expected, (len(ids), 3)))
+            if np.any(info["external_force"]):
+                seen.add(target)
+    env.close()
+    assert seen == set(FORCE_TARGETS)
+
+
+def test_the_robust_preset_trains_with_its_curriculum_and_normalizer():
+    preset = read_preset("Zerith1-v0", ROBUST_PRESET)
+    env_kwargs = dict(preset["env_kwargs"])
+    assert env_kwargs.pop("scenario") == "robust"
+    env = VecNormalize(zerith_gym.make_vec_env(4, seed=0, scenario="robust", workers=0, **env_kwargs),
+                       **normalize_kwargs(preset))  # fmt: skip
+    kwargs = {**algorithm_kwargs(preset), "n_steps": 16, "n_epochs": 1}
+    model = HuRiPPO(preset["policy"], env, seed=0, **kwargs)
+    model.learn(128)
+    assert env.norm_obs_keys == ["policy"] and "critic" not in env.obs_rms
+    groups = {group["name"]: group["lr"] for group in model.policy.optimizer.param_groups}
+    assert groups["critic"] == pytest.approx(3e-4)
+    assert groups["actor"] == pytest.approx(model.kl_learning_rate)
+    env.close()
+
+
+def test_scaling_the_robust_scenario_scales_every_force_of_its_cycle():
+    half = scaled_scenario(SCENARIOS["robust"], 0.5)
+    assert half.force.magnitude == (0.0, 100.0)
+    assert [s.magnitude for s in half.force.schedules] == [(0.0, 50.0), (75.0, 100.0)] * 3
