@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 from zerith_gym import robot
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
-from zerith_gym.rewards import TermValues, resolve_reward_weights
+from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask, task_constants
@@ -150,33 +150,6 @@ class BatchStep(NamedTuple):
     policy_obs: np.ndarray  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
     critic_obs: np.ndarray  # (n, CRITIC_SIZE)
     next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
-
-
-def step_infos(step: BatchStep) -> list[dict[str, Any]]:
-    """The info dict of every robot for `step` (keys documented in `Zerith1Env`)."""
-    out = step.out
-    columns = zip(
-        out.fall.tolist(),
-        out.sim_unstable.tolist(),
-        out.lin_vel_error.tolist(),
-        out.ang_vel_error.tolist(),
-        step.force.copy(),
-        step.command.copy(),
-        out.terms,
-        strict=True,
-    )
-    return [
-        {
-            "fall": fall,
-            "sim_unstable": unstable,
-            "lin_vel_error": lin_error,
-            "ang_vel_error": ang_error,
-            "external_force": force,
-            "command": command,
-            "reward_terms": TermValues(terms),
-        }
-        for fall, unstable, lin_error, ang_error, force, command, terms in columns
-    ]
 
 
 class ZerithBatch:

@@ -59,10 +59,16 @@ class RewardTermsLogger(BaseCallback):
         self._reset()
 
     def _on_step(self) -> bool:
-        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
-            self._errors += (info["lin_vel_error"], info["ang_vel_error"])
-            self._steps += 1
-            if done and "episode_terms" in info:
+        infos, dones = self.locals["infos"], self.locals["dones"]
+        step = getattr(infos, "step", None)  # a ZerithVecEnv's arrays (zerith_gym.infos.StepInfos)
+        if step is not None:
+            self._errors += (step.out.lin_vel_error.sum(), step.out.ang_vel_error.sum())
+        else:
+            self._errors += np.sum([(info["lin_vel_error"], info["ang_vel_error"]) for info in infos], axis=0)
+        self._steps += len(infos)
+        for i in np.flatnonzero(dones):
+            info = infos[i]
+            if "episode_terms" in info:
                 self._episode_terms += [info["episode_terms"][name] for name in REWARD_NAMES]
                 self._episodes += 1
                 self._falls += bool(info["fall"])
@@ -157,10 +163,10 @@ class RandomizationCurriculum(BaseCallback):
         self.logger.record("curriculum/scale", self.scale)
 
     def _on_step(self) -> bool:
-        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
-            if done:
-                self._episodes += 1
-                self._falls += bool(info.get("fall", False))
+        infos = self.locals["infos"]
+        for i in np.flatnonzero(self.locals["dones"]):
+            self._episodes += 1
+            self._falls += bool(infos[i].get("fall", False))
         return True
 
 

@@ -41,8 +41,8 @@ from zerith_gym.batch import (
     format_observation,
     observation_space,
     reset_command,
-    step_infos,
 )
+from zerith_gym.infos import step_infos
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.workers import WorkerPool, default_workers
@@ -137,9 +137,7 @@ class ZerithVecEnv(VecEnv):
         self._returns += out.reward
         self._lengths += 1
         self._term_sums += out.terms
-        infos = step_infos(step)
-        for info in infos:
-            info["TimeLimit.truncated"] = False
+        infos = step_infos(step)  # read lazily from the step's arrays (zerith_gym.infos)
         dones = out.terminated | out.truncated
         ended = np.flatnonzero(dones).tolist()
         if ended:

@@ -127,10 +127,10 @@ class RunCheckpoint(BaseCallback):
         self.state.sessions.append(self._session)
 
     def _on_step(self) -> bool:
-        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
-            if done:
-                self._episodes += 1
-                self._falls += bool(info.get("fall", False))
+        infos = self.locals["infos"]
+        for i in np.flatnonzero(self.locals["dones"]):
+            self._episodes += 1
+            self._falls += bool(infos[i].get("fall", False))
         if self.num_timesteps - self._saved_at >= self.every_steps:
             self.save()
         return self.max_wall_s is None or time.time() - self._began < self.max_wall_s

@@ -16,8 +16,8 @@ from zerith_gym.batch import (
     format_observation,
     observation_space,
     reset_command,
-    step_infos,
 )
+from zerith_gym.infos import step_infos
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
 
@@ -115,7 +115,7 @@ class Zerith1Env(gym.Env):
         out = step.out
         self._episode_terms += out.terms[0]
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
-        info = step_infos(step)[0]
+        info = dict(step_infos(step)[0])
         if terminated or truncated:
             info["episode_terms"] = dict(zip(REWARD_NAMES, self._episode_terms.tolist(), strict=True))
             self._needs_reset = True
