@@ -35,6 +35,8 @@ def test_each_info_reads_its_robot_from_the_step_arrays(stepped):
             "reward_terms", "TimeLimit.truncated",
         }  # fmt: skip
         assert len(dict(info)) == len(info) == 8
+        copied = info.copy()
+        assert type(copied) is dict and copied.keys() == dict(info).keys()
 
 
 def test_episode_ends_write_their_keys_and_keep_them(stepped):

@@ -90,6 +90,10 @@ class RobotInfo(MutableMapping[str, Any]):
             return self[key]
         return default
 
+    def copy(self) -> dict[str, Any]:
+        """A plain dict of every key, as `dict.copy` gives (readers that copy infos expect one)."""
+        return dict(self)
+
     def __repr__(self) -> str:
         return repr(dict(self))
 
