@@ -150,11 +150,3 @@ class RayBackend:
     def close(self) -> None:
         if self.started:
             self.ray.shutdown()
-
-
-def available_cpus() -> int:
-    """CPU cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1

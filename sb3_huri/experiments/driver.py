@@ -8,7 +8,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from sb3_huri.experiments.backends import Backend, LocalBackend, RayBackend, available_cpus
+from sb3_huri.experiments.backends import Backend, LocalBackend, RayBackend
 from sb3_huri.experiments.layout import (
     EvalSettings,
     ExperimentError,
@@ -19,6 +19,7 @@ from sb3_huri.experiments.layout import (
     validate_grid,
 )
 from sb3_huri.experiments.task import RunOutcome, RunTask, is_finished
+from zerith_gym.workers import available_cores
 
 BACKENDS = ("local", "ray")
 
@@ -80,7 +81,7 @@ def run_experiment(
     if not todo:
         return outcomes
 
-    cores = available_cpus()
+    cores = available_cores()
     if backend == "local":
         parallel = parallel or min(len(todo), cores)
         cpus = cpus_per_run or max(1, cores // parallel)
