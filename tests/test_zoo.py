@@ -7,6 +7,7 @@ by the ``enjoy``, ``record_video`` and output checks (module-scoped fixture).
 from __future__ import annotations
 
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -139,6 +140,23 @@ def test_train_without_conf_uses_the_packaged_presets(tmp_path: Path) -> None:
     assert f"Loading hyperparameters from: {PRESETS_FILE}" in result.stdout
     model = HuRiPPO.load(tmp_path / "logs/huri-baseline/Pendulum-v1_1/Pendulum-v1.zip", device="cpu")
     assert model.variant == "baseline"
+
+
+@requires_hook
+def test_rl_zoo_trains_the_robust_preset(tmp_path: Path) -> None:
+    """`rl_zoo3 train -conf hyperparams/huri_robust.yml`: its scenario, trust region and normalizer keys."""
+    conf = str(REPO / "hyperparams" / "huri_robust.yml")
+    command = [*rl_zoo3_command(), "train", "--algo", "huri", "--env", "Zerith1-v0", "-conf", conf,
+               "-n", "256", "--eval-freq", "-1", "--seed", "0", "-f", "logs", "--num-threads", "1",
+               "-params", "n_envs:2", "n_steps:64"]  # fmt: skip
+    run(command, tmp_path)
+    folder = tmp_path / "logs" / "huri" / "Zerith1-v0_1"
+    model = HuRiPPO.load(folder / "Zerith1-v0.zip")
+    assert model.desired_kl == 0.007 and model.critic_learning_rate == pytest.approx(3e-4)
+    assert [g["name"] for g in model.policy.optimizer.param_groups] == ["actor", "critic"]
+    assert "scenario: robust" in (folder / "Zerith1-v0" / "config.yml").read_text()
+    with open(folder / "Zerith1-v0" / "vecnormalize.pkl", "rb") as file:
+        assert pickle.load(file).norm_obs_keys == ["policy"]
 
 
 def test_wrapper_works_without_the_hook(tmp_path: Path) -> None:
