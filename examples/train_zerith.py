@@ -20,14 +20,15 @@ written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip`
 Every `--checkpoint-freq` steps and at the end, the run folder gets its newest checkpoint: model,
 normalizer, random states, curriculum stage and the sessions' wall time (`sb3_huri.zoo.checkpoints`), and
 `curve.csv` a row per rollout; `<run>/checkpoints/` keeps every checkpoint's model and normalizer.
-`--resume` continues from the newest checkpoint, so a run can train over many sessions (stop it any time:
-at most `--checkpoint-freq` steps are lost). TensorBoard logs include the episode sums of every reward term
-(`terms/<name>`) and the fall rate.
+`--resume` continues from the newest checkpoint, so a run can train over many sessions (`kill` or Ctrl-C
+stops it at the next step with a checkpoint; a hard stop loses at most `--checkpoint-freq` steps).
+TensorBoard logs include the episode sums of every reward term (`terms/<name>`) and the fall rate.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import time
 from pathlib import Path
 
@@ -153,9 +154,10 @@ def main() -> None:
     every = max(args.checkpoint_freq // env.num_envs, 1)
     callbacks.append(CheckpointCallback(every, str(run / "checkpoints"), save_vecnormalize=True))
     max_wall = None if args.max_wall_minutes is None else 60.0 * args.max_wall_minutes
-    callbacks.append(
-        RunCheckpoint(run, preset, run_args, args.checkpoint_freq, curriculum, max_wall, verbose=1)
-    )
+    checkpoint = RunCheckpoint(run, preset, run_args, args.checkpoint_freq, curriculum, max_wall, verbose=1)
+    callbacks.append(checkpoint)
+    for stop in (signal.SIGTERM, signal.SIGINT):  # `kill` or Ctrl-C: stop at the next step, with a checkpoint
+        signal.signal(stop, lambda *_: checkpoint.request_stop())
     print(f"Writing to {run}; callbacks: {', '.join(type(c).__name__ for c in callbacks)}")
     began = time.time()
     model.learn(

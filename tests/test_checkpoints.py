@@ -104,3 +104,20 @@ def test_a_resumed_curriculum_goes_on_from_its_stage():
 def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):
     result = subprocess.run([*TRAIN, "--resume", str(tmp_path)], capture_output=True, text=True, timeout=120)
     assert result.returncode != 0 and "no Zerith1-v0.zip there" in result.stderr
+
+
+@pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
+def test_a_stop_request_ends_training_at_the_next_step_with_a_checkpoint(tmp_path):
+    """What `kill` (SIGTERM) does to `examples/train_zerith.py`: the run stops and saves its newest state."""
+    import zerith_gym
+    from sb3_huri.zoo.checkpoints import RunCheckpoint
+
+    env = zerith_gym.make_vec_env(2, seed=0, workers=0)
+    model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
+    checkpoint = RunCheckpoint(tmp_path / "run", {"n_envs": 2}, {"seed": 0}, every_steps=10_000)
+    checkpoint.request_stop()
+    model.learn(1000, callback=checkpoint)
+    assert model.num_timesteps == 2  # one step of 2 robots, then the stop
+    assert RunState.read(tmp_path / "run").timesteps == 2
+    assert (tmp_path / "run" / "Zerith1-v0.zip").is_file()
+    env.close()

@@ -110,6 +110,11 @@ class RunCheckpoint(BaseCallback):
         self._saved_at = 0
         self._episodes = self._falls = 0
         self._session: dict[str, Any] = {}
+        self._stop_requested = False
+
+    def request_stop(self) -> None:
+        """End training at the next step, with a checkpoint (e.g. from a SIGTERM handler)."""
+        self._stop_requested = True
 
     @property
     def wall_s(self) -> float:
@@ -133,6 +138,8 @@ class RunCheckpoint(BaseCallback):
             self._falls += bool(infos[i].get("fall", False))
         if self.num_timesteps - self._saved_at >= self.every_steps:
             self.save()
+        if self._stop_requested:
+            return False
         return self.max_wall_s is None or time.time() - self._began < self.max_wall_s
 
     def _on_rollout_end(self) -> None:
