@@ -53,6 +53,8 @@ def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage
     saved = HuRiPPO.load(run / "Zerith1-v0.zip")
     assert saved.num_timesteps == 256 and saved.desired_kl == 0.007
 
+    with (run / "curve.csv").open("a") as file:  # a row that a stopped session wrote after its checkpoint
+        file.write("320" + ",0" * (len(CURVE_COLUMNS) - 1) + "\n")
     _train("--resume", str(run), "-n", "128", "--checkpoint-freq", "128")  # algo, seed and preset: the run's
     second = RunState.read(run)
     assert second.timesteps == 384 and len(second.sessions) == 2

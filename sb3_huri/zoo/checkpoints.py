@@ -18,6 +18,7 @@ the same draws as a run that was never interrupted.
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import os
 import platform
@@ -124,6 +125,7 @@ class RunCheckpoint(BaseCallback):
     def _on_training_start(self) -> None:
         self._began = time.time()
         self._saved_at = self.num_timesteps
+        self._drop_curve_rows_after(self.num_timesteps)
         self._session = {
             "started": time.strftime("%Y-%m-%d %H:%M:%S"),
             "from_timesteps": self.num_timesteps,
@@ -163,6 +165,21 @@ class RunCheckpoint(BaseCallback):
             if new:
                 writer.writeheader()
             writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+    def _drop_curve_rows_after(self, timesteps: int) -> None:
+        """Forget the curve's rows past the checkpoint a resumed run starts from (a stopped session's last
+        steps, which the run trains again)."""
+        path = self.run / CURVE_FILE
+        if not path.is_file():
+            return
+        with path.open(newline="") as file:
+            rows = list(csv.DictReader(file))
+        kept = list(itertools.takewhile(lambda row: int(row["timesteps"]) <= timesteps, rows))
+        if len(kept) < len(rows):
+            with path.open("w", newline="") as file:
+                writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
+                writer.writeheader()
+                writer.writerows(kept)
 
     def _on_training_end(self) -> None:
         self.save()
