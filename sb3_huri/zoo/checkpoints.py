@@ -195,11 +195,14 @@ class RunCheckpoint(BaseCallback):
             wall_s=round(wall, 1),
             sessions=self.state.sessions,
         )
-        (self.run / self.env_id / "state.json").write_text(json.dumps(asdict(state), indent=1) + "\n")
+        folder = self.run / self.env_id
+        (folder / ".state.saving").write_text(json.dumps(asdict(state), indent=1) + "\n")
         th.save(
             {"torch": th.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()},  # noqa: NPY002
-            self.run / self.env_id / "rng.pt",
+            folder / ".rng.saving",
         )
+        os.replace(folder / ".rng.saving", folder / "rng.pt")
+        os.replace(folder / ".state.saving", folder / "state.json")  # last: the checkpoint is complete
         self._saved_at = self.num_timesteps
         if self.verbose:
             print(f"checkpoint: {self.num_timesteps} steps, {wall:.0f} s of training, in {self.run}")

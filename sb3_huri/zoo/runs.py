@@ -34,7 +34,8 @@ def save_run(
 ) -> None:
     """Model, normalizer, preset and arguments in RL Zoo's layout (what ``rl_zoo3 enjoy`` loads).
 
-    The normalizer is saved when the model's env is a ``VecNormalize``.
+    The normalizer is saved when the model's env is a ``VecNormalize``. Model and normalizer are written to
+    temporary files and renamed, so that a run stopped while saving keeps its previous files whole.
     """
     import yaml
     from stable_baselines3.common.vec_env import VecNormalize
@@ -42,10 +43,13 @@ def save_run(
     run = Path(run)
     stats = run / env_id
     stats.mkdir(parents=True, exist_ok=True)
-    model.save(run / f"{env_id}.zip")
+    temporary = run / f".{env_id}.saving.zip"
+    model.save(temporary)
+    os.replace(temporary, run / f"{env_id}.zip")
     env = model.get_env()
     if isinstance(env, VecNormalize):
-        env.save(str(stats / "vecnormalize.pkl"))
+        env.save(str(stats / ".vecnormalize.saving.pkl"))
+        os.replace(stats / ".vecnormalize.saving.pkl", stats / "vecnormalize.pkl")
     with open(stats / "config.yml", "w") as f:
         yaml.safe_dump(preset, f)
     with open(stats / "args.yml", "w") as f:
