@@ -3,7 +3,8 @@
 For every checkpoint of a run (`<run>/checkpoints/rl_model_<steps>_steps.zip` and its normalizer, written by
 `examples/train_zerith.py`) at least `--every` steps after the last one evaluated, and for the run's newest
 model, evaluates the deterministic policy on the six Table-1 scenarios (continuous and sudden forces on
-centroid, hands and feet, at the test ranges and 1 m/s), on `nominal@1.0` and `nominal@0.5`, and appends a
+centroid, hands and feet, at the test ranges and 1 m/s), on `side-impact` (one 200 N push from the side),
+`nominal@1.0` and `nominal@0.5`, and appends a
 row per checkpoint to `<run>/robustness.csv`: steps, the run's training wall time at that step (from
 `curve.csv`) and the hardware it trained on (`state.json`), the survival rate of each case (`--episodes`
 robots, seeds `--seed` + i, the same for every checkpoint), the Table-1 mean and the mean forward velocity
@@ -29,7 +30,7 @@ from sb3_huri.zoo import load_run
 from sb3_huri.zoo.checkpoints import RunState
 
 ENV_ID = "Zerith1-v0"
-CASES = (*TABLE1_SCENARIOS, "nominal@1.0", "nominal@0.5")
+CASES = (*TABLE1_SCENARIOS, "side-impact", "nominal@1.0", "nominal@0.5")
 COLUMNS = ("timesteps", "wall_s", "hardware", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
 
 

@@ -218,7 +218,7 @@ def test_forced_instability_ends_the_episode_with_finite_outputs():
 def test_package_exports():
     assert set(zerith_gym.SCENARIOS) == {
         "train", "nominal", "continuous-centroid", "continuous-hands", "continuous-feet", "sudden-centroid",
-        "sudden-hands", "sudden-feet", "load", "friction", "load-friction", "uneven", "robust",
+        "sudden-hands", "sudden-feet", "load", "friction", "load-friction", "uneven", "side-impact", "robust",
     }  # fmt: skip
     assert tuple(zerith_gym.DEFAULT_REWARD_WEIGHTS) == zerith_gym.REWARD_NAMES
 

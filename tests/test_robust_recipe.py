@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,9 @@ from stable_baselines3.common.vec_env import VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym.disturbances import FORCE_TARGETS, TARGET_INDEX, ForceCycle, ForceSchedule
+from zerith_gym.disturbances import FORCE_TARGETS, TARGET_INDEX, ForceCycle, ForceSchedule, horizontal_vectors
 from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SCALE, critic_in_units, layout_slices
-from zerith_gym.randomization import WIDEST, domain_bounds
+from zerith_gym.randomization import NOMINAL, WIDEST, domain_bounds
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario
 
 ROBUST_PRESET = Path(__file__).resolve().parent.parent / "hyperparams" / "huri_robust.yml"
@@ -112,3 +113,21 @@ def test_scaling_the_robust_scenario_scales_every_force_of_its_cycle():
     half = scaled_scenario(SCENARIOS["robust"], 0.5)
     assert half.force.magnitude == (0.0, 100.0)
     assert [s.magnitude for s in half.force.schedules] == [(0.0, 50.0), (75.0, 100.0)] * 3
+
+
+def test_the_side_impact_is_one_200_newton_push_from_the_side_at_two_seconds():
+    standing = replace(SCENARIOS["side-impact"], randomization=NOMINAL)  # zero actions stand through it
+    env = zerith_gym.make_vec_env(2, seed=0, scenario=standing, workers=0)
+    env.reset()
+    forces = []
+    for _ in range(110):
+        _, _, dones, infos = env.step(np.zeros((2, 12)))
+        assert not dones.any()
+        forces.append(infos[0]["external_force"])
+    forces = np.array(forces)
+    pushed = np.flatnonzero(np.linalg.norm(forces, axis=1))
+    np.testing.assert_array_equal(pushed, np.arange(100, 105))
+    np.testing.assert_allclose(forces[pushed], np.tile([0.0, 200.0, 0.0], (5, 1)), atol=1e-9)
+    env.close()
+    random_direction = horizontal_vectors(np.array([[0.0, 0.25]]), np.array([1.0, 1.0]), np.array([np.nan]))
+    np.testing.assert_allclose(random_direction, [[0.0, 1.0, 0.0]], atol=1e-12)  # NaN: the uniform draw

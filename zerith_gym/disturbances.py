@@ -39,6 +39,8 @@ class ForceSchedule:
     period_steps: int = 5
     duration_steps: int = 5
     start_step: int = 0
+    direction: float | None = None
+    """Direction (rad, world frame, from +x towards +y) of every force drawn; None: uniform."""
 
     def __post_init__(self) -> None:
         if self.target not in FORCE_TARGETS:
@@ -62,6 +64,7 @@ class ForceSchedule:
         return ForceTable(
             draw, on, np.tile(np.asarray(self.magnitude, dtype=float), (num_steps, 1)),
             np.full(num_steps, TARGET_INDEX[self.target]),
+            np.full(num_steps, np.nan if self.direction is None else float(self.direction)),
         )  # fmt: skip
 
 
@@ -106,6 +109,7 @@ class ForceTable(NamedTuple):
     on: np.ndarray  # (steps,) bool: the force acts
     magnitude: np.ndarray  # (steps, 2) N: the range a new force's magnitude is drawn from
     target: np.ndarray  # (steps,) int: the target it acts on (`TARGET_INDEX`)
+    direction: np.ndarray  # (steps,) rad: a new force's direction, NaN for a uniform one
 
 
 ForceProgram = ForceSchedule | ForceCycle
@@ -113,13 +117,18 @@ ForceProgram = ForceSchedule | ForceCycle
 NO_FORCE = ForceSchedule()
 
 
-def horizontal_vectors(uniforms: np.ndarray, magnitude: np.ndarray) -> np.ndarray:
-    """Vectors (n, 3) of uniform magnitude in `magnitude` and uniform horizontal direction (numpy or JAX)."""
+def horizontal_vectors(
+    uniforms: np.ndarray, magnitude: np.ndarray, direction: np.ndarray | None = None
+) -> np.ndarray:
+    """Vectors (n, 3) of uniform magnitude in `magnitude` and uniform horizontal direction (numpy or JAX),
+    or the angle `direction` (n,) (rad) where it is not NaN."""
     xp = namespace(uniforms)
     magnitude = xp.asarray(magnitude)
     low, high = magnitude[..., 0], magnitude[..., 1]  # a range, or one per vector (n, 2)
     norm = low + (high - low) * uniforms[:, 0]
     angle = 2.0 * np.pi * uniforms[:, 1]
+    if direction is not None:
+        angle = xp.where(xp.isnan(direction), angle, direction)
     return xp.stack([norm * xp.cos(angle), norm * xp.sin(angle), xp.zeros_like(norm)], axis=1)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
 
 from zerith_gym.commands import CommandRanges
@@ -29,6 +30,10 @@ class Scenario:
 _TEST_RANGES = replace(NOMINAL, added_mass=TEST_LOAD, friction=TEST_FRICTION, com_offset=TEST_COM)
 _CONTINUOUS = {"magnitude": (0.0, 100.0), "period_steps": 5, "duration_steps": 5}
 _SUDDEN = {"magnitude": (150.0, 200.0), "period_steps": 100, "duration_steps": 5, "start_step": 100}
+_SIDE_IMPACT = ForceSchedule(
+    "centroid", (200.0, 200.0), period_steps=1000, duration_steps=5, start_step=100, direction=math.pi / 2
+)
+"""One 200 N impulse of 0.1 s on the centroid from the walking robot's right (force towards +y) at 2 s."""
 _EVERY_HALF_SECOND = ForceSchedule("centroid", (0.0, 100.0), period_steps=25, duration_steps=25)
 
 
@@ -85,6 +90,7 @@ def _build() -> dict[str, Scenario]:
             command=TEST_COMMAND,
         ),
         Scenario("uneven", terrain=UNEVEN, command=TEST_COMMAND),
+        Scenario("side-impact", _TEST_RANGES, _SIDE_IMPACT, command=TEST_COMMAND),
         ROBUST,
     ]
     return {s.name: s for s in scenarios}

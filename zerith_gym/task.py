@@ -97,6 +97,7 @@ class ScenarioArrays(NamedTuple):
     domain_high: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
     force_magnitude: np.ndarray  # (episode_steps, 2) N, the range of a force drawn at each step
     force_target: np.ndarray  # (episode_steps,) int, the target (`disturbances.TARGET_INDEX`) at each step
+    force_direction: np.ndarray  # (episode_steps,) rad, a drawn force's direction (NaN: uniform)
     push_velocity: np.ndarray  # (2,) m/s
     command_low: np.ndarray  # (3,)
     command_high: np.ndarray  # (3,)
@@ -132,6 +133,7 @@ def scenario_arrays(
         domain_high=domain_high,
         force_magnitude=force.magnitude,
         force_target=force.target,
+        force_direction=force.direction,
         push_velocity=np.array(ranges.push_velocity, dtype=float),
         command_low=low,
         command_high=high,
@@ -204,7 +206,9 @@ def step_disturbances(
     `step_count` (n,), from uniforms (n, STEP_DRAWS)."""
     xp = namespace(uniforms, step_count)
     due = sc.due[step_count]
-    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude[step_count])
+    drawn_force = horizontal_vectors(
+        uniforms[:, _FORCE], sc.force_magnitude[step_count], sc.force_direction[step_count]
+    )
     drawn_command = commands_from_uniforms(
         uniforms[:, _COMMAND], sc.command_low, sc.command_high, sc.standing_probability
     )
