@@ -28,7 +28,7 @@ from zerith_gym.scenarios import SCENARIOS  # noqa: E402
 from zerith_gym.task import (  # noqa: E402
     RESET_DRAWS,
     STEP_DRAWS,
-    evaluate,
+    judge_step,
     reset_values,
     scenario_arrays,
     step_disturbances,
@@ -97,7 +97,7 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     )
 
     def judged(sensordata, *inputs):
-        return evaluate(layout.read(sensordata), *inputs, constants)
+        return judge_step(layout.read(sensordata), *inputs, constants)
 
     _assert_tree_close(
         judged(sensordata, *inputs), jax.jit(judged)(*_to_jax((sensordata, *inputs))), rtol=1e-4, atol=1e-4

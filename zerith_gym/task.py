@@ -2,7 +2,7 @@
 
 The task's math is a set of pure functions over arrays with a leading robot axis, written against the
 functions numpy and jax.numpy share (`zerith_gym.arrays`): `reset_values`, `step_disturbances`,
-`action_targets`, `ground`, `observations`, `reward_inputs`, `evaluate`. Both backends call them: the
+`action_targets`, `ground`, `observations`, `reward_inputs`, `judge_step`. Both backends call them: the
 CPU backend with numpy (`ZerithTask` below), the MJX backend with jax.numpy under `jax.jit`
 (`zerith_gym.mjx`). What a scenario sets is handed to them as arrays (`ScenarioArrays`), so a curriculum
 changes it without rebuilding anything.
@@ -379,8 +379,8 @@ def task_constants(
     return TaskConstants(terrain, reward_weights * robot.CONTROL_DT, soft, episode_steps)
 
 
-class Evaluation(NamedTuple):
-    """A control step of n robots judged from the sensors after physics (`evaluate`)."""
+class Judgement(NamedTuple):
+    """A control step of n robots judged from the sensors after physics (`judge_step`)."""
 
     policy_obs: np.ndarray  # (n, POLICY_SIZE) float32
     critic_obs: np.ndarray  # (n, CRITIC_SIZE) float32
@@ -391,7 +391,7 @@ class Evaluation(NamedTuple):
     ang_vel_error: np.ndarray  # (n,) |yaw rate - commanded|, rad/s
 
 
-def evaluate(
+def judge_step(
     r: robot.Sensors,
     gait_step: np.ndarray,
     command: np.ndarray,
@@ -401,7 +401,7 @@ def evaluate(
     domain_vector: np.ndarray,
     noise: np.ndarray | None,
     constants: TaskConstants,
-) -> Evaluation:
+) -> Judgement:
     """Observations, rewards and falls of n robots from their sensor readings after a control step."""
     xp = namespace(r.base_pos)
     clock = GAIT_TABLE[gait_step] if xp is np else xp.asarray(GAIT_TABLE, r.base_pos.dtype)[gait_step]
@@ -411,7 +411,7 @@ def evaluate(
     policy, critic = observations(r, g, clock, command, actions[:, 0], force, domain_vector, noise)
     linvel, angvel = r.base_linvel, r.base_angvel
     velocity_error = linvel[:, :2] - command[:, :2]
-    return Evaluation(
+    return Judgement(
         policy_obs=policy,
         critic_obs=critic,
         terms=terms,
@@ -438,7 +438,7 @@ class StepOutput(NamedTuple):
 
 
 def step_output(
-    e: Evaluation,
+    e: Judgement,
     unstable: np.ndarray,
     step_count: np.ndarray,
     episode_steps: int,
@@ -560,7 +560,7 @@ class ZerithTask:
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         readings = self.sensors.read(sensordata)
         noise = observation_noise(self._uniforms, self.arrays) if self._noisy else None
-        e = evaluate(
+        e = judge_step(
             readings,
             self.gait_step,
             self.command,

@@ -47,7 +47,7 @@ from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.workers import WorkerPool, default_workers
 
-BACKENDS = ("cpu", "mjx")
+SIMULATION_BACKENDS = ("cpu", "mjx")
 """Where the robots are simulated: "cpu" (MuJoCo, one model per robot, worker processes) or "mjx"
 (MuJoCo MJX on JAX's default device, a GPU where there is one: `pip install "sb3-huri[mjx]"`)."""
 
@@ -83,8 +83,8 @@ class ZerithVecEnv(VecEnv):
         self.options = ZerithOptions.from_kwargs(options, "ZerithVecEnv")
         if not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"the number of robots must be a positive integer, got {num_envs!r}")
-        if backend not in BACKENDS:
-            raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
+        if backend not in SIMULATION_BACKENDS:
+            raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(SIMULATION_BACKENDS)}")
         self.backend = backend
         self.robots: ZerithBatch | WorkerPool | Any
         if backend == "mjx":

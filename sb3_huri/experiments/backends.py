@@ -1,6 +1,6 @@
 """Where the runs execute: a local process pool (default) or Ray tasks spread over a cluster.
 
-Both take ``task.RunTask`` jobs and hand back ``task.RunOutcome`` results as runs finish; the caller
+Both take ``job.RunJob`` jobs and hand back ``job.RunOutcome`` results as runs finish; the caller
 (``driver``) submits at most ``parallel`` runs at a time and follows their progress in the folder.
 
 - ``LocalBackend``: ``concurrent.futures.ProcessPoolExecutor`` (spawned processes, so that no torch or
@@ -25,17 +25,17 @@ import sys
 from collections.abc import Iterable
 from typing import Any, Protocol
 
+from sb3_huri.experiments.job import RunJob, RunOutcome, execute_run
 from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.task import RunOutcome, RunTask, execute_run
 
 TASK_RETRIES = 3
 """Ray retries of a run whose worker or machine died (it continues from its last checkpoint)."""
 
 
 class Backend(Protocol):
-    """Runs ``RunTask`` jobs somewhere and reports them as they finish."""
+    """Runs ``RunJob`` jobs somewhere and reports them as they finish."""
 
-    def submit(self, task: RunTask) -> Any:
+    def submit(self, task: RunJob) -> Any:
         """Start ``task``; returns a handle."""
 
     def wait(self, handles: Iterable[Any], timeout: float) -> list[Any]:
@@ -87,7 +87,7 @@ class LocalBackend:
             else:
                 os.environ[name] = value
 
-    def submit(self, task: RunTask) -> cf.Future:
+    def submit(self, task: RunJob) -> cf.Future:
         return self.pool.submit(execute_run, task)
 
     def wait(self, handles: Iterable[cf.Future], timeout: float) -> list[cf.Future]:
@@ -128,7 +128,7 @@ class RayBackend:
             ray.init(address=address)
         self.remote = ray.remote(num_cpus=cpus, max_retries=TASK_RETRIES)(execute_run)
 
-    def submit(self, task: RunTask) -> Any:
+    def submit(self, task: RunJob) -> Any:
         return self.remote.remote(task)
 
     def wait(self, handles: Iterable[Any], timeout: float) -> list[Any]:

@@ -9,6 +9,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from sb3_huri.experiments.backends import Backend, LocalBackend, RayBackend
+from sb3_huri.experiments.job import RunJob, RunOutcome, is_finished
 from sb3_huri.experiments.layout import (
     EvalSettings,
     ExperimentError,
@@ -18,10 +19,9 @@ from sb3_huri.experiments.layout import (
     run_folder,
     validate_grid,
 )
-from sb3_huri.experiments.task import RunOutcome, RunTask, is_finished
 from zerith_gym.workers import available_cores
 
-BACKENDS = ("local", "ray")
+EXECUTION_BACKENDS = ("local", "ray")
 
 
 def run_experiment(
@@ -51,8 +51,8 @@ def run_experiment(
     """
     from sb3_huri.zoo import read_preset
 
-    if backend not in BACKENDS:
-        raise ExperimentError(f"unknown backend {backend!r}; backends: {', '.join(BACKENDS)}")
+    if backend not in EXECUTION_BACKENDS:
+        raise ExperimentError(f"unknown backend {backend!r}; backends: {', '.join(EXECUTION_BACKENDS)}")
     grid = validate_grid(env, methods, seeds)
     for name, value in (("timesteps", timesteps), ("checkpoint_freq", checkpoint_freq)):
         if value < 1:
@@ -92,9 +92,9 @@ def run_experiment(
         runner = RayBackend(cpus, ray_address)
         parallel = parallel or len(todo)
         echo(f"ray backend: {cpus} CPU(s) per run, up to {parallel} runs at once")
-    tasks = deque(RunTask(str(out), method, seed, cpus) for method, seed in todo)
+    tasks = deque(RunJob(str(out), method, seed, cpus) for method, seed in todo)
     progress = _Progress(out, settings, echo)
-    running: dict[object, RunTask] = {}
+    running: dict[object, RunJob] = {}
     try:
         while tasks or running:
             while tasks and len(running) < parallel:
@@ -125,7 +125,7 @@ class _Progress:
         self.shown: dict[tuple[str, int], tuple[str, int]] = {}
         self.first: dict[tuple[str, int], tuple[int, float]] = {}
 
-    def poll(self, tasks: Iterable[RunTask]) -> None:
+    def poll(self, tasks: Iterable[RunJob]) -> None:
         for task in tasks:
             key = (task.method, task.seed)
             try:

@@ -1,6 +1,6 @@
 """n Zerith-1 robots on MJX: the task state as a JAX pytree, and jitted reset and step functions.
 
-The task is the CPU backend's: `reset_values`, `step_disturbances`, `action_targets`, `evaluate`,
+The task is the CPU backend's: `reset_values`, `step_disturbances`, `action_targets`, `judge_step`,
 `step_output` and `observations` from `zerith_gym.task`, the domain fields from
 `zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
 needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
@@ -32,8 +32,8 @@ from zerith_gym.task import (
     ScenarioArrays,
     TaskConstants,
     action_targets,
-    evaluate,
     ground,
+    judge_step,
     observation_noise,
     observations,
     reset_values,
@@ -204,7 +204,7 @@ class MjxBatch:
         readings = self.sensors.read(sensordata)
         step_count = state.step_count + 1
         gait_step = (state.gait_step + 1) % len(GAIT_TABLE)
-        e = evaluate(
+        e = judge_step(
             readings,
             gait_step,
             drawn.command,

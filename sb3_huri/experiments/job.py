@@ -23,7 +23,7 @@ from sb3_huri.experiments.layout import (
 
 
 @dataclass(frozen=True)
-class RunTask:
+class RunJob:
     """A run of the grid for a backend: the experiment folder, the run, and the cores it may use."""
 
     out: str
@@ -48,7 +48,7 @@ class RunOutcome:
     eval_seconds: float = 0.0
 
 
-def execute_run(task: RunTask) -> RunOutcome:
+def execute_run(task: RunJob) -> RunOutcome:
     """Train the run of ``task`` to the experiment's steps (resuming), then evaluate it if it is not yet.
 
     Never raises for a failing run: the error is kept in its ``status.json`` and returned, so one broken
