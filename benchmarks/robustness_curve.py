@@ -12,6 +12,10 @@ at 1 m/s.
 
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1                 # new checkpoints only
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --every 5000000 --episodes 10
+    python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --docs docs/training.md  # docs' tables too
+
+With `--docs FILE`, the run's status (sessions, steps, wall time, curriculum, the update's figures) and the
+robustness curve replace the text between `<!-- robust-run:begin -->` and `<!-- robust-run:end -->` in FILE.
 """
 
 from __future__ import annotations
@@ -86,6 +90,81 @@ def evaluate_checkpoint(
     return row
 
 
+STATUS_COLUMNS = (
+    "ep_len", "ep_return", "fall_rate", "scale", "approx_kl", "clip_fraction", "explained_variance", "std",
+    "learning_rate",
+)  # fmt: skip
+
+
+def _median(rows: list[dict[str, str]], key: str) -> float:
+    values = sorted(float(r[key]) for r in rows if r[key] not in ("", "nan"))
+    return values[len(values) // 2] if values else float("nan")
+
+
+def status_markdown(run: Path) -> str:
+    """The run's sessions, and its training figures per 1M-step block and over the whole run."""
+    state = RunState.read(run)
+    with (run / "curve.csv").open() as file:
+        rows = list(csv.DictReader(file))
+    lines = [
+        f"{state.timesteps:,} steps in {state.wall_s / 3600:.2f} h of training over {len(state.sessions)} "
+        f"session(s); curriculum stage {state.curriculum_stage} (scale {rows[-1]['scale']}).",
+        "",
+        "| session started | steps | wall (min) | hardware |",
+        "|---|---|---|---|",
+    ]
+    for session in state.sessions:
+        steps = f"{session['from_timesteps']:,} -> {session.get('to_timesteps', session['from_timesteps']):,}"
+        wall = session.get("wall_s", 0.0) / 60
+        lines.append(f"| {session['started']} | {steps} | {wall:.0f} | {session['hardware']} |")
+    lines += [
+        "",
+        "Per 1M steps, medians over the updates (`curve.csv`): mean training episode length and",
+        "return, share of ended episodes that fell, curriculum scale, approximate KL, clip fraction,",
+        "critic explained variance, action noise, the actor's mean learning rate:",
+        "",
+        "| steps | wall (h) | ep len | return | falls | scale | approx_kl | clip | expl. var. | std | lr |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    blocks: dict[int, list[dict[str, str]]] = {}
+    for row in rows:
+        blocks.setdefault(int(row["timesteps"]) // 1_000_000, []).append(row)
+    for block, members in [*blocks.items(), (-1, rows)]:
+        label = "whole run" if block < 0 else f"{block}-{block + 1}M"
+        wall = float(members[-1]["wall_s"]) / 3600
+        cells = [_median(members, key) for key in STATUS_COLUMNS]
+        formatted = [f"{cells[0]:.0f}", f"{cells[1]:.0f}", *(f"{v:.3g}" for v in cells[2:])]
+        lines.append(f"| {label} | {wall:.2f} | " + " | ".join(formatted) + " |")
+    return "\n".join(lines)
+
+
+def curve_markdown(run: Path) -> str:
+    """The robustness curve as a table."""
+    path = run / "robustness.csv"
+    if not path.is_file():
+        return "(no checkpoint evaluated yet)"
+    with path.open() as file:
+        rows = list(csv.DictReader(file))
+    header = ["steps", "wall (h)", *CASES, "Table-1 mean", "vx @ 1.0"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row in rows:
+        cells = [f"{int(row['timesteps']):,}", f"{float(row['wall_s']) / 3600:.2f}", *(row[c] for c in CASES)]
+        lines.append("| " + " | ".join([*cells, row["table1_mean"], row["vx_at_1.0"]]) + " |")
+    return "\n".join(lines)
+
+
+def update_docs(run: Path, docs: Path) -> None:
+    """Replace the run's section of `docs` (between the robust-run markers) with its current tables."""
+    begin, end = "<!-- robust-run:begin -->", "<!-- robust-run:end -->"
+    text = docs.read_text()
+    if begin not in text or end not in text:
+        raise ValueError(f"{docs} has no {begin} ... {end} section to replace")
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    body = f"{status_markdown(run)}\n\nRobustness curve:\n\n{curve_markdown(run)}"
+    docs.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -96,6 +175,7 @@ def main() -> None:
     )
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=1000)
+    parser.add_argument("--docs", type=Path, default=None, help="also write the run's tables into this file")
     args = parser.parse_args()
     th.set_num_threads(1)
     output = args.run / "robustness.csv"
@@ -121,6 +201,8 @@ def main() -> None:
             writer.writerow(row)
         print(row, flush=True)
         last = steps
+    if args.docs is not None:
+        update_docs(args.run, args.docs)
 
 
 if __name__ == "__main__":
