@@ -23,39 +23,15 @@ from pathlib import Path
 import numpy as np
 import torch as th
 import yaml
-from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.zoo.checkpoints import UpdateRecorder
 from zerith_gym.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
-
-
-class UpdateStats(BaseCallback):
-    """Records, per rollout, the previous update's approximate KL and learning rate and the episode return."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.rows: list[dict[str, float]] = []
-
-    def _on_step(self) -> bool:
-        return True
-
-    def _on_rollout_end(self) -> None:
-        values = self.model.logger.name_to_value
-        if "train/approx_kl" in values:
-            episodes = [info["r"] for info in self.model.ep_info_buffer]
-            self.rows.append(
-                {
-                    "timesteps": self.num_timesteps,
-                    "approx_kl": float(values["train/approx_kl"]),
-                    "learning_rate": float(values["train/learning_rate"]),
-                    "ep_rew_mean": float(np.mean(episodes)) if episodes else float("nan"),
-                }
-            )
 
 
 def continue_run(
@@ -76,11 +52,11 @@ def continue_run(
         model.policy.rnd.normalize_error = False
     model.desired_kl = desired_kl
     model.kl_learning_rate = None  # the first update starts from the run's learning rate
-    stats = UpdateStats()
+    stats = UpdateRecorder()
     began = time.time()
     model.learn(steps, callback=stats, reset_num_timesteps=False)
     kls = np.array([row["approx_kl"] for row in stats.rows])
-    returns = [row["ep_rew_mean"] for row in stats.rows]
+    returns = [row["ep_return"] for row in stats.rows]
     return {
         "desired_kl": desired_kl,
         "steps": steps,

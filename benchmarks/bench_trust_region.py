@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
-from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from sb3_huri.zoo.checkpoints import UpdateRecorder
 from zerith_gym.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -40,37 +40,6 @@ ARMS: dict[str, dict] = {
     "kl-shared": {"desired_kl": 0.01, "critic_learning_rate": None, "learning_rate": 3e-4},
     "kl-actor": {"desired_kl": 0.01, "critic_learning_rate": 3e-4, "learning_rate": 3e-4},
 }
-RECORDED = (
-    "approx_kl",
-    "clip_fraction",
-    "explained_variance",
-    "std",
-    "learning_rate",
-    "critic_learning_rate",
-)
-
-
-class UpdateRecorder(BaseCallback):
-    """One row per update: the update's figures (SB3's logger) and the mean length of recent episodes."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.rows: list[dict[str, float]] = []
-
-    def _on_step(self) -> bool:
-        return True
-
-    def _on_rollout_end(self) -> None:
-        values = self.model.logger.name_to_value
-        if "train/approx_kl" not in values:
-            return
-        lengths = [info["l"] for info in self.model.ep_info_buffer]
-        row = {
-            "timesteps": self.num_timesteps,
-            "ep_len": float(np.mean(lengths)) if lengths else float("nan"),
-        }
-        row.update({key: float(values[f"train/{key}"]) for key in RECORDED if f"train/{key}" in values})
-        self.rows.append(row)
 
 
 def train_arm(

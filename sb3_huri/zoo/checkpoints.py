@@ -42,6 +42,33 @@ CURVE_COLUMNS = (
 _TRAIN_COLUMNS = CURVE_COLUMNS[6:]
 
 
+def update_figures(model: Any) -> dict[str, float]:
+    """The recent episodes' mean length and return, and the previous update's figures (SB3's logger holds
+    them until the next dump, so read them at the end of a rollout; NaN where not logged)."""
+    values = model.logger.name_to_value
+    episodes = list(model.ep_info_buffer)
+    return {
+        "ep_len": float(np.mean([e["l"] for e in episodes])) if episodes else np.nan,
+        "ep_return": float(np.mean([e["r"] for e in episodes])) if episodes else np.nan,
+        **{key: float(values.get(f"train/{key}", np.nan)) for key in _TRAIN_COLUMNS},
+    }
+
+
+class UpdateRecorder(BaseCallback):
+    """Keeps a row per update in `rows`: steps and `update_figures` (for benchmarks comparing settings)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rows: list[dict[str, float]] = []
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        if "train/approx_kl" in self.model.logger.name_to_value:
+            self.rows.append({"timesteps": self.num_timesteps, **update_figures(self.model)})
+
+
 @dataclass
 class RunState:
     """What a checkpoint records beside the model: progress, curriculum stage and the sessions so far."""
@@ -145,16 +172,15 @@ class RunCheckpoint(BaseCallback):
         return self.max_wall_s is None or time.time() - self._began < self.max_wall_s
 
     def _on_rollout_end(self) -> None:
-        values = self.model.logger.name_to_value
-        episodes = list(self.model.ep_info_buffer)
+        figures = update_figures(self.model)
         row = {
             "timesteps": self.num_timesteps,
             "wall_s": round(self.wall_s, 1),
-            "ep_len": np.mean([e["l"] for e in episodes]) if episodes else np.nan,
-            "ep_return": np.mean([e["r"] for e in episodes]) if episodes else np.nan,
+            "ep_len": figures.pop("ep_len"),
+            "ep_return": figures.pop("ep_return"),
             "fall_rate": self._falls / self._episodes if self._episodes else np.nan,
             "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
-            **{key: values.get(f"train/{key}", np.nan) for key in _TRAIN_COLUMNS},
+            **figures,
         }
         self._episodes = self._falls = 0
         path = self.run / CURVE_FILE
