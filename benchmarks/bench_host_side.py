@@ -57,6 +57,7 @@ class PrecomputedRobots:
 def host_env(n: int) -> zerith_gym.ZerithVecEnv:
     """A ZerithVecEnv of n robots whose robots are `PrecomputedRobots` (its bookkeeping sized for n)."""
     env = zerith_gym.make_vec_env(1, workers=0)
+    env.reset()
     env.close()
     env.robots = PrecomputedRobots(n)
     env.num_envs = n

@@ -68,7 +68,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=None, help="default: 0, or a resumed run's")
     parser.add_argument("-f", "--log-folder", type=Path, default=Path("logs"))
     parser.add_argument(
-        "--resume", type=Path, default=None, help="a run folder to continue (-n more steps; same curriculum)"
+        "--resume",
+        type=Path,
+        default=None,
+        help="a run folder to continue (-n more steps, default: the rest of its budget; same curriculum)",
     )
     parser.add_argument("--checkpoint-freq", type=int, default=500_000, help="env steps between checkpoints")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest for small nets)")
@@ -126,8 +129,13 @@ def main() -> None:
     state = RunState.read(run) if args.resume else RunState()
     if args.resume:
         model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log)
+        if state.timesteps != model.num_timesteps:
+            print(f"warning: {run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
         restore_random_states(run)
-        env.seed(args.seed + model.num_timesteps)  # reproducible from this checkpoint
+        env.seed(args.seed + model.num_timesteps)  # reproducible from this checkpoint ...
+        model._last_obs = None  # ... from a reset: SB3 would go on from the observation saved with the model
+        if args.n_timesteps is None:  # the rest of the preset's budget
+            budget = max(budget - model.num_timesteps, 0)
     else:
         model = HuRiPPO(
             preset["policy"],

@@ -27,6 +27,7 @@ def _tiny_robust_preset(folder: Path) -> Path:
     presets = yaml.safe_load((ROOT / "hyperparams" / "huri_robust.yml").read_text())
     preset = presets["Zerith1-v0"]
     preset.update(n_envs=4, n_steps=16, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
+    preset["n_timesteps"] = 384
     # A curriculum that may rise a stage per rollout, held back only by falls.
     preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
         steps=64, stages=4, max_fall_rate=1.0
@@ -55,7 +56,9 @@ def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage
 
     with (run / "curve.csv").open("a") as file:  # a row that a stopped session wrote after its checkpoint
         file.write("320" + ",0" * (len(CURVE_COLUMNS) - 1) + "\n")
-    _train("--resume", str(run), "-n", "128", "--checkpoint-freq", "128")  # algo, seed and preset: the run's
+    _train(
+        "--resume", str(run), "--checkpoint-freq", "128"
+    )  # the rest of the budget; the run's algo and seed
     second = RunState.read(run)
     assert second.timesteps == 384 and len(second.sessions) == 2
     assert second.sessions[1]["from_timesteps"] == 256 and second.wall_s >= first.wall_s

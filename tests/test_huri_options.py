@@ -191,6 +191,14 @@ def test_desired_kl_adapts_only_the_actor_rate_when_the_critic_has_its_own():
     assert rates["critic"] == pytest.approx(5e-4 * model._current_progress_remaining)
 
 
+def test_a_model_saved_with_one_rate_loads_with_a_critic_learning_rate(tmp_path):
+    HuRiPPO("MlpPolicy", dict_env(), seed=0, **SMALL).learn(64).save(tmp_path / "model.zip")
+    with pytest.warns(UserWarning, match="the saved Adam moments are dropped, the weights are kept"):
+        loaded = HuRiPPO.load(tmp_path / "model.zip", env=dict_env(), critic_learning_rate=1e-3)
+    loaded.learn(64, reset_num_timesteps=False)
+    assert {g["name"]: g["lr"] for g in loaded.policy.optimizer.param_groups}["critic"] == 1e-3
+
+
 @pytest.mark.parametrize("value", [0.0, -1e-3, "fast"])
 def test_bad_critic_learning_rate_is_refused(value):
     with pytest.raises(ValueError, match="critic_learning_rate must be None, a float > 0 or a schedule"):

@@ -60,6 +60,11 @@ def test_a_force_cycle_takes_turns_between_its_schedules():
     np.testing.assert_array_equal(table.draw, np.where(in_sudden, steps % 100 == 0, steps % 5 == 0))
     np.testing.assert_array_equal(table.on, np.where(in_sudden, steps % 100 < 5, True))
     np.testing.assert_array_equal(table.magnitude[:, 1], np.where(in_sudden, 200.0, 100.0))
+    # A phase that starts within its schedule's period draws a force of its own at its first step.
+    slow = ForceSchedule("hands", (0.0, 10.0), period_steps=30, duration_steps=30)
+    table = ForceCycle((continuous, slow), phase_steps=100).table(300)
+    assert table.draw[100] and table.target[100] == TARGET_INDEX["hands"] and table.magnitude[100, 1] == 10.0
+    assert table.draw[200] and not table.draw[101:120].any()
     with pytest.raises(ValueError, match="phase_steps must be a positive integer"):
         ForceCycle((continuous,), phase_steps=0)
     with pytest.raises(ValueError, match="one or more ForceSchedule"):

@@ -269,3 +269,12 @@ def test_reward_terms_logger_writes_each_term_per_rollout(tmp_path):
         assert 0.0 <= float(row["terms/fall_rate"]) <= 1.0 and float(row["terms/lin_vel_error"]) > 0.0
         assert 0.0 < float(row["terms/alive"]) <= 0.5 * 0.02 * 16 + 1e-9  # weight x dt x episode length
         assert all(f"terms/{name}" in row for name in zerith_gym.REWARD_NAMES)
+
+
+def test_stepping_before_the_first_reset_is_a_clear_error():
+    env = zerith_gym.make_vec_env(2, workers=0)
+    with pytest.raises(RuntimeError, match="call reset\\(\\) before the first step"):
+        env.step(np.zeros((2, 12)))
+    env.reset()
+    env.step(np.zeros((2, 12)))
+    env.close()

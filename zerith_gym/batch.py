@@ -213,14 +213,14 @@ class ZerithBatch:
         and commands are the new episode's.
         """
         targets, drawn = self.task.before_physics(actions)
-        force, command = drawn.force, self.task.command.copy()
+        force, command = drawn.force.copy(), self.task.command.copy()  # the task's arrays change later
         kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
         unstable = self.sim.step(targets, force, drawn.force_target, kicks)
         out = self.task.after_physics(self.sim.sensordata, unstable)
         policy, critic = out.policy_obs, out.critic_obs
         ended = np.flatnonzero(out.terminated | out.truncated) if autoreset else ()
         if len(ended):  # the reset writes into the task's arrays: keep the step's values
-            policy, critic, force = policy.copy(), critic.copy(), force.copy()
+            policy, critic = policy.copy(), critic.copy()
             policy[ended], critic[ended] = self.reset(ended)
         return BatchStep(out, force, command, policy, critic, self.task.command)
 

@@ -96,10 +96,14 @@ class ForceCycle:
         return replace(self, schedules=tuple(s.scaled(scale) for s in self.schedules))
 
     def table(self, num_steps: int) -> ForceTable:
+        """The schedules' tables, each over its phases; a phase whose force acts from its first step draws
+        a new one there (no force carries over from the previous phase)."""
         tables = [s.table(num_steps) for s in self.schedules]
-        phase = (np.arange(num_steps) // self.phase_steps) % len(self.schedules)
         steps = np.arange(num_steps)
-        return ForceTable(*(np.stack(column)[phase, steps] for column in zip(*tables, strict=True)))
+        phase = (steps // self.phase_steps) % len(self.schedules)
+        table = ForceTable(*(np.stack(column)[phase, steps] for column in zip(*tables, strict=True)))
+        phase_start = steps % self.phase_steps == 0
+        return table._replace(draw=table.draw | (phase_start & table.on))
 
 
 class ForceTable(NamedTuple):

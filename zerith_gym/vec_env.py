@@ -112,6 +112,7 @@ class ZerithVecEnv(VecEnv):
         self._lengths = np.zeros(num_envs, dtype=int)
         self._term_sums = np.zeros((num_envs, len(REWARD_NAMES)))
         self._start_time = time.time()
+        self._reset_done = False
 
     # ------------------------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
@@ -126,9 +127,14 @@ class ZerithVecEnv(VecEnv):
         self._term_sums[:] = 0.0
         self._reset_seeds()
         self._reset_options()
+        self._reset_done = True
         return format_observation(self.obs_mode, policy, critic)
 
     def step_async(self, actions: np.ndarray) -> None:
+        if not self._reset_done:
+            raise RuntimeError(
+                "ZerithVecEnv: call reset() before the first step (the robots are not placed yet)"
+            )
         self._actions = check_actions(actions, self._action_shape)
 
     def step_wait(self) -> VecEnvStepReturn:

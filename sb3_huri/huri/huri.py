@@ -351,6 +351,27 @@ class HuRiPPO(OnPolicyAlgorithm):
             )
         return super()._setup_learn(total_timesteps, *args, **kwargs)
 
+    def set_parameters(
+        self,
+        load_path_or_dict: str | dict[str, Any],
+        exact_match: bool = True,
+        device: th.device | str = "auto",
+    ) -> None:
+        """SB3's, and a model saved with one learning rate also loads with ``critic_learning_rate``: its
+        optimizer state (one parameter group) cannot fill the actor and critic groups, so Adam starts afresh
+        (with a warning)."""
+        if isinstance(load_path_or_dict, dict) and self.policy.critic_param_group:
+            saved = load_path_or_dict.get("policy.optimizer")
+            if saved is not None and len(saved["param_groups"]) != len(self.policy.optimizer.param_groups):
+                warnings.warn(
+                    "the saved model learned with one learning rate; with critic_learning_rate its optimizer "
+                    "has actor and critic groups: the saved Adam moments are dropped, the weights are kept",
+                    stacklevel=3,
+                )
+                load_path_or_dict = {k: v for k, v in load_path_or_dict.items() if k != "policy.optimizer"}
+                exact_match = False
+        super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
+
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts, variables = super()._get_torch_save_params()
         if self.policy_kwargs.get("rnd_kwargs") is not None:
