@@ -25,12 +25,10 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
-from stable_baselines3.common.vec_env import VecNormalize
 
-import zerith_gym
-from sb3_huri import HuRiPPO
-from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from sb3_huri.zoo import read_preset
 from sb3_huri.zoo.checkpoints import UpdateRecorder
+from sb3_huri.zoo.presets import preset_env, preset_model
 from zerith_gym.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -47,18 +45,11 @@ def train_arm(
 ) -> dict:
     """Train one arm from scratch for `steps` steps and return its per-update rows."""
     preset = read_preset(ENV_ID, preset_file)
-    kwargs = {**algorithm_kwargs(preset), **ARMS[arm]}
-    if kwargs["desired_kl"] is not None:
-        kwargs["desired_kl"] = desired_kl
-    env_kwargs = {k: v for k, v in (preset.get("env_kwargs") or {}).items() if k != "scenario"}
-    env = zerith_gym.make_vec_env(
-        int(preset["n_envs"]),
-        seed=seed,
-        scenario=scaled_scenario(get_scenario(scenario), scale),
-        **env_kwargs,
-    )
-    env = VecNormalize(env, gamma=kwargs.get("gamma", 0.99), **(normalize_kwargs(preset) or {}))
-    model = HuRiPPO(preset["policy"], env, seed=seed, device="cpu", **kwargs)
+    overrides = dict(ARMS[arm])
+    if overrides["desired_kl"] is not None:
+        overrides["desired_kl"] = desired_kl
+    env = preset_env(preset, seed=seed, scenario=scaled_scenario(get_scenario(scenario), scale))
+    model = preset_model(preset, env, seed=seed, device="cpu", **overrides)
     recorder = UpdateRecorder()
     began = time.time()
     model.learn(steps, callback=recorder)
@@ -66,7 +57,7 @@ def train_arm(
     return {
         "arm": arm,
         "seed": seed,
-        "desired_kl": kwargs["desired_kl"],
+        "desired_kl": overrides["desired_kl"],
         "steps": steps,
         "scenario": f"{scenario}x{scale:g}",
         "wall_s": round(time.time() - began, 1),

@@ -36,12 +36,11 @@ import torch as th
 import yaml
 from rl_zoo3.utils import get_callback_list
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-from stable_baselines3.common.vec_env import VecNormalize
 
-import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo import METHODS, algorithm_kwargs, next_run_folder, normalize_kwargs, read_preset
+from sb3_huri.zoo import METHODS, next_run_folder, read_preset
 from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState, restore_random_states
+from sb3_huri.zoo.presets import preset_env, preset_model
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
 
@@ -111,21 +110,16 @@ def main() -> None:
     budget = args.n_timesteps or int(preset["n_timesteps"])
     env_kwargs = dict(preset.get("env_kwargs") or {})
     scenario = get_scenario(env_kwargs.pop("scenario", "train"))
-    norm = normalize_kwargs(preset)
     run = args.resume or next_run_folder(args.log_folder, args.algo)
-
-    env = zerith_gym.make_vec_env(
-        int(preset["n_envs"]),
+    normalizer = run / ENV_ID / "vecnormalize.pkl" if args.resume else None
+    env = preset_env(
+        preset,
         seed=args.seed,
+        normalizer=normalizer,
         scenario=scenario,
         workers=args.workers,
         physics_threads=args.physics_threads,
-        **env_kwargs,
     )
-    if norm is not None and args.resume:
-        env = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
-    elif norm is not None:
-        env = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
     state = RunState.read(run) if args.resume else RunState()
     if args.resume:
         model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log)
@@ -137,14 +131,8 @@ def main() -> None:
         if args.n_timesteps is None:  # the rest of the preset's budget
             budget = max(budget - model.num_timesteps, 0)
     else:
-        model = HuRiPPO(
-            preset["policy"],
-            env,
-            variant=METHODS[args.algo],
-            seed=args.seed,
-            tensorboard_log=args.tensorboard_log,
-            verbose=1,
-            **algorithm_kwargs(preset),
+        model = preset_model(
+            preset, env, method=args.algo, seed=args.seed, tensorboard_log=args.tensorboard_log, verbose=1
         )
     run_args = {
         "algo": args.algo,

@@ -101,40 +101,27 @@ def train_run(
     import torch as th
     from rl_zoo3.utils import get_callback_list
     from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-    from stable_baselines3.common.vec_env import VecNormalize
 
-    import zerith_gym
     from sb3_huri import HuRiPPO
-    from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs, save_run
+    from sb3_huri.zoo import save_run
+    from sb3_huri.zoo.presets import preset_env, preset_model
 
     th.set_num_threads(1)  # small networks: one thread is fastest, and several runs share the machine
     preset = dict(settings.preset)
     env_kwargs = {**(gym.spec(settings.env).kwargs or {}), **(preset.get("env_kwargs") or {})}
-    norm = normalize_kwargs(preset)
     resume = status.checkpoint
     seed = status.seed + (resume or 0)
-    env = zerith_gym.make_vec_env(int(preset["n_envs"]), seed=seed, workers=workers, **env_kwargs)
+    model_path, stats_path = checkpoint_paths(folder, resume or 0)
+    normalizer = stats_path if resume is not None else None
+    env = preset_env(preset, seed=seed, normalizer=normalizer, workers=workers, **env_kwargs)
     try:
         if resume is not None:
-            model_path, stats_path = checkpoint_paths(folder, resume)
-            if norm is not None:
-                env = VecNormalize.load(str(stats_path), env)
             model = HuRiPPO.load(model_path, env, device="cpu")
             model.set_random_seed(seed)
             status.resumed_from.append(resume)
             _trim_curve(folder, resume)
         else:
-            if norm is not None:
-                env = VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
-            model = HuRiPPO(
-                preset["policy"],
-                env,
-                variant=METHODS[status.method],
-                seed=status.seed,
-                device="cpu",
-                verbose=0,
-                **algorithm_kwargs(preset),
-            )
+            model = preset_model(preset, env, method=status.method, seed=status.seed, device="cpu", verbose=0)
             _trim_curve(folder, 0)
         status.state, status.trained_to, status.evaluated = "training", None, None
         status.steps = model.num_timesteps

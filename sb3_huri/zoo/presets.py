@@ -1,0 +1,53 @@
+"""Training from an RL Zoo preset outside RL Zoo: the preset's batched env with its normalizer, and its model.
+
+`examples/train_zerith.py`, the experiment grid (`sb3_huri.experiments`) and the benchmarks build what
+`rl_zoo3 train` builds from the same preset, through these two functions.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs
+
+
+def preset_env(
+    preset: dict[str, Any],
+    *,
+    seed: int,
+    n_envs: int | None = None,
+    normalizer: str | os.PathLike | None = None,
+    **env_options: Any,
+) -> Any:
+    """The preset's batched Zerith env, wrapped in its `VecNormalize` if the preset normalizes.
+
+    `n_envs` robots (default: the preset's), seeded `seed + i`, with the preset's `env_kwargs` updated by
+    `env_options` (`scenario`, `workers`, `backend`, ...). `normalizer`: a saved `vecnormalize.pkl` to go on
+    with (a resumed run); otherwise a new normalizer with the preset's settings and discount.
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    import zerith_gym
+
+    env_kwargs = {**(preset.get("env_kwargs") or {}), **env_options}
+    env = zerith_gym.make_vec_env(int(n_envs or preset["n_envs"]), seed=seed, **env_kwargs)
+    norm = normalize_kwargs(preset)
+    if norm is None:
+        return env
+    if normalizer is not None:
+        return VecNormalize.load(str(normalizer), env)
+    return VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
+
+
+def preset_model(
+    preset: dict[str, Any], env: Any, *, method: str = "huri", seed: int = 0, **overrides: Any
+) -> Any:
+    """A new `HuRiPPO` of `method` (an RL Zoo algorithm name, `sb3_huri.zoo.METHODS`) with the preset's
+    hyperparameters, any of them replaced by `overrides` (also `device`, `verbose`, `tensorboard_log`)."""
+    from sb3_huri import HuRiPPO
+
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    kwargs = {**algorithm_kwargs(preset), **overrides}
+    return HuRiPPO(preset["policy"], env, variant=METHODS[method], seed=seed, **kwargs)
