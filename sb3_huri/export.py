@@ -261,8 +261,22 @@ def actor_graph(actor: Actor, normalization: Normalization | None) -> Any:
     )
 
 
-def deployment_metadata(env_id: str, input_size: int) -> dict[str, Any]:
-    """What a controller needs to build the observation and apply the action, for `env_id`'s robot.
+def _training_scenario(run: Path, env_id: str) -> str:
+    """The scenario a run folder's `args.yml` names (RL Zoo's layout), `train` if it names none."""
+    import yaml
+
+    args_file = run / env_id / "args.yml"
+    try:
+        saved = yaml.safe_load(args_file.read_text()) if args_file.is_file() else None
+    except yaml.YAMLError:  # RL Zoo's own args.yml is an OrderedDict with a Python tag
+        saved = None
+    env_kwargs = (saved or {}).get("env_kwargs") if isinstance(saved, dict) else None
+    return str((env_kwargs or {}).get("scenario", "train"))
+
+
+def deployment_metadata(env_id: str, input_size: int, training_scenario: str = "train") -> dict[str, Any]:
+    """What a controller needs to build the observation and apply the action, for `env_id`'s robot
+    trained in `training_scenario` (whose command ranges it reports).
 
     Empty for environments other than this package's robots (the graph itself is still complete).
     """
@@ -280,7 +294,7 @@ def deployment_metadata(env_id: str, input_size: int) -> dict[str, Any]:
             f"{env_id}'s policy observation has {POLICY_SIZE} values, the actor reads {input_size}"
         )
     slices = layout_slices(POLICY_LAYOUT)
-    commands = SCENARIOS["train"].command_ranges
+    commands = SCENARIOS[training_scenario].command_ranges
     return {
         "robot": "Zerith-1",
         "mjcf": "zerith_gym/assets/zerith1.xml",
@@ -321,11 +335,12 @@ def export_actor(
     env_id: str,
     output: str | os.PathLike,
     source: str | None = None,
+    training_scenario: str = "train",
 ) -> Any:
     """Write the deterministic actor of `model`, with `normalizer`'s observation normalization, to `output`.
 
     `normalizer` is the run's ``VecNormalize`` (or None for a run without one); `source` names the run in
-    the metadata. Returns the ``onnx.ModelProto`` written.
+    the metadata, `training_scenario` the scenario it was trained in. Returns the ``onnx.ModelProto`` written.
     """
     import onnx
     from onnx import helper
@@ -358,7 +373,7 @@ def export_actor(
                 "clip": normalization.clip,
             }
         ),
-        **deployment_metadata(env_id, actor.input_size),
+        **deployment_metadata(env_id, actor.input_size, training_scenario),
     }
     proto = helper.make_model(
         actor_graph(actor, normalization),
@@ -491,7 +506,14 @@ def main(argv: Sequence[str] | None = None) -> None:
     try:
         model, normalizer = load_run_for_export(args.run, args.env, normalized=not args.unnormalized)
         run = args.run.resolve()
-        export_actor(model, normalizer, args.env, args.output, source=f"{run.parent.name}/{run.name}")
+        export_actor(
+            model,
+            normalizer,
+            args.env,
+            args.output,
+            f"{run.parent.name}/{run.name}",
+            _training_scenario(run, args.env),
+        )
     except (FileNotFoundError, ValueError) as error:
         parser.exit(2, f"error: {error}\n")
     actor = actor_of(model.policy)
