@@ -318,6 +318,16 @@ def test_rl_zoo_trains_on_mjx_through_env_kwargs(tmp_path):
     assert "backend: mjx" in (run / "Zerith1-v0" / "args.yml").read_text()
 
 
+def test_mjx_keeps_the_robots_contract():
+    from zerith_gym.contract import Robots
+
+    env = zerith_gym.make_vec_env(2, seed=0, backend="mjx")
+    env.reset()
+    members = [name for name in vars(Robots) if not name.startswith("_")] + ["num_robots", "scenario"]
+    assert all(hasattr(env.robots, name) for name in members)
+    env.close()
+
+
 def test_bad_backend_options_get_clear_errors():
     with pytest.raises(ValueError, match="unknown backend 'gpu'; valid backends: cpu, mjx"):
         zerith_gym.make_vec_env(2, backend="gpu")

@@ -278,3 +278,23 @@ def test_stepping_before_the_first_reset_is_a_clear_error():
     env.reset()
     env.step(np.zeros((2, 12)))
     env.close()
+
+
+def test_every_backend_keeps_the_robots_contract():
+    """The CPU batch and the worker pool have every member of `zerith_gym.contract.Robots` (MJX: test_mjx)."""
+    import inspect
+
+    from zerith_gym.contract import Robots, check_num_robots
+
+    members = [name for name in vars(Robots) if not name.startswith("_")] + ["num_robots", "scenario"]
+    for workers in (0, 1):
+        env = zerith_gym.make_vec_env(4, seed=0, workers=workers)
+        env.reset()
+        for name in members:
+            assert hasattr(env.robots, name), (type(env.robots).__name__, name)
+        step = inspect.signature(env.robots.step)
+        assert next(iter(step.parameters)) == "actions"
+        env.close()
+    for bad in (0, -1, 2.5, True, "4"):
+        with pytest.raises(ValueError, match="the number of robots must be a positive integer"):
+            check_num_robots(bad)

@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from zerith_gym import robot
+from zerith_gym.contract import check_num_robots, check_scenario_change
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario, resolve_scenario
@@ -130,17 +131,6 @@ def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     )  # np.clip, without its overhead
 
 
-def check_scenario_change(current: Scenario, new: Scenario) -> None:
-    """ValueError unless an env built for `current` can follow `new` (the same terrain)."""
-    if not isinstance(new, Scenario):
-        raise ValueError(f"expected a Scenario, got {new!r}")
-    if new.terrain != current.terrain:
-        raise ValueError(
-            f"scenario {new.name!r} has another terrain than {current.name!r}: only randomization, "
-            "forces, pushes and commands can change in an env; make a new env instead"
-        )
-
-
 class BatchStep(NamedTuple):
     """One control step of n robots, with the robots whose episode ended already reset."""
 
@@ -153,11 +143,12 @@ class BatchStep(NamedTuple):
 
 
 class ZerithBatch:
-    """`num_robots` robots: their simulations (`sim`) and task state (`task`), reset and stepped together."""
+    """`num_robots` robots: their simulations (`sim`) and task state (`task`), reset and stepped together in
+    this process (the robots contract, `zerith_gym.contract.Robots`; `step` may also leave ended episodes
+    for the caller to reset, as the single env does)."""
 
     def __init__(self, num_robots: int, options: ZerithOptions, physics_threads: int = 1) -> None:
-        if not isinstance(num_robots, int | np.integer) or num_robots < 1:
-            raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
+        self.num_robots = check_num_robots(num_robots)
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)

@@ -42,6 +42,7 @@ from zerith_gym.batch import (
     observation_space,
     reset_command,
 )
+from zerith_gym.contract import Robots, check_num_robots
 from zerith_gym.infos import step_infos
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
@@ -81,12 +82,11 @@ class ZerithVecEnv(VecEnv):
         **options: Any,
     ) -> None:
         self.options = ZerithOptions.from_kwargs(options, "ZerithVecEnv")
-        if not isinstance(num_envs, int | np.integer) or num_envs < 1:
-            raise ValueError(f"the number of robots must be a positive integer, got {num_envs!r}")
+        check_num_robots(num_envs)
         if backend not in SIMULATION_BACKENDS:
             raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(SIMULATION_BACKENDS)}")
         self.backend = backend
-        self.robots: ZerithBatch | WorkerPool | Any
+        self.robots: Robots
         if backend == "mjx":
             if workers or physics_threads != 1:
                 raise ValueError("workers and physics_threads are options of the cpu backend, not of mjx")

@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions, check_scenario_change
+from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions
+from zerith_gym.contract import check_scenario_change
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario
@@ -185,7 +186,7 @@ def _serve(
 
 class WorkerPool:
     """`num_robots` robots in `workers + 1` contiguous slices: the first stepped by the calling process, the
-    others by `workers` worker processes; `ZerithBatch`'s interface."""
+    others by `workers` worker processes (the robots contract, `zerith_gym.contract.Robots`)."""
 
     def __init__(
         self, num_robots: int, options: ZerithOptions, workers: int, physics_threads: int = 1

@@ -19,7 +19,8 @@ import numpy as np
 from mujoco import mjx
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithOptions, check_scenario_change
+from zerith_gym.batch import BatchStep, ZerithOptions
+from zerith_gym.contract import check_num_robots, check_scenario_change
 from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
 from zerith_gym.physics import domain_model_fields
 from zerith_gym.randomization import DomainParams
@@ -64,16 +65,14 @@ class MjxState(NamedTuple):
 
 
 class MjxBatch:
-    """`num_robots` robots on MJX in one scenario, behind `zerith_gym.batch.ZerithBatch`'s interface.
+    """`num_robots` robots on MJX in one scenario (the robots contract, `zerith_gym.contract.Robots`).
 
     Reset and step are jitted functions of the state (one compile each, at the first call); numpy arrays
     come in and go out, so `ZerithVecEnv` drives either backend.
     """
 
     def __init__(self, num_robots: int, options: ZerithOptions, solver: SolverSettings | None = None) -> None:
-        if not isinstance(num_robots, int | np.integer) or num_robots < 1:
-            raise ValueError(f"the number of robots must be a positive integer, got {num_robots!r}")
-        self.num_robots = int(num_robots)
+        self.num_robots = check_num_robots(num_robots)
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
@@ -99,7 +98,7 @@ class MjxBatch:
         arrays = scenario_arrays(scenario, self.options.fixed_command(scenario), self.constants.episode_steps)
         self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
 
-    # --------------------------------------------- the interface of zerith_gym.batch.ZerithBatch (numpy)
+    # ------------------------------------------------- the robots contract (zerith_gym.contract.Robots)
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
         """Seed the next reset: the JAX key is drawn from the generator of the lowest robot index given."""
         if seeds:
@@ -129,13 +128,11 @@ class MjxBatch:
             raise RuntimeError("reset the robots first")
         return np.asarray(self.state.command, dtype=float)
 
-    def step(self, actions: np.ndarray, autoreset: bool = True) -> BatchStep:
+    def step(self, actions: np.ndarray) -> BatchStep:
         """One control step of every robot with checked actions (n, 12) in [-1, 1]; robots whose episode
-        ended restart (always: the MJX backend has no `autoreset=False`)."""
+        ended restart inside the step."""
         if self.state is None:
             raise RuntimeError("reset the robots before stepping them")
-        if not autoreset:
-            raise ValueError("the MJX backend always resets ended episodes inside its step")
         self.state, step = self._step(self.state, jnp.asarray(actions, _real()), self.arrays)
         step = jax.device_get(step)  # numpy arrays, in one transfer
         out = step.out._replace(reward=step.out.reward.astype(float), terms=step.out.terms.astype(float))
