@@ -298,3 +298,12 @@ def test_every_backend_keeps_the_robots_contract():
     for bad in (0, -1, 2.5, True, "4"):
         with pytest.raises(ValueError, match="the number of robots must be a positive integer"):
             check_num_robots(bad)
+
+
+def test_the_worker_shared_block_holds_every_field_of_the_step_record():
+    from zerith_gym.batch import BatchStep
+    from zerith_gym.task import StepOutput
+    from zerith_gym.workers import BATCH_STEP_COLUMNS, STEP_OUTPUT_COLUMNS
+
+    assert list(STEP_OUTPUT_COLUMNS) == list(StepOutput._fields)
+    assert ["out", *BATCH_STEP_COLUMNS] == list(BatchStep._fields)

@@ -72,25 +72,37 @@ def default_workers(num_robots: int, cores: int | None = None) -> int:
     return max(min(cores, num_robots // MIN_ROBOTS_PER_WORKER) - 1, 0)
 
 
+STEP_OUTPUT_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
+    "policy_obs": (np.float32, (POLICY_SIZE,)),  # of the step (terminal where an episode ended)
+    "critic_obs": (np.float32, (CRITIC_SIZE,)),
+    "reward": (np.float64, ()),
+    "terminated": (np.bool_, ()),
+    "truncated": (np.bool_, ()),
+    "fall": (np.bool_, ()),
+    "sim_unstable": (np.bool_, ()),
+    "lin_vel_error": (np.float64, ()),
+    "ang_vel_error": (np.float64, ()),
+    "terms": (np.float64, (len(REWARD_NAMES),)),
+}
+"""Dtype and per-robot shape of each field of `StepOutput`: the step record the shared block holds."""
+BATCH_STEP_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
+    "force": (np.float64, (3,)),
+    "command": (np.float64, (3,)),
+    "policy_obs": (np.float32, (POLICY_SIZE,)),  # to act on next (after a reset where an episode ended)
+    "critic_obs": (np.float32, (CRITIC_SIZE,)),
+    "next_command": (np.float64, (3,)),
+}
+"""The same for the fields of `BatchStep` other than `out`."""
+_OUT = "out."
+"""Prefix of the shared arrays of `StepOutput` fields."""
+
+
 def _fields(n: int) -> dict[str, tuple[type, tuple[int, ...]]]:
-    """Every array of the shared block: dtype and shape, for n robots."""
+    """Every array of the shared block: dtype and shape, for n robots (derived from the step record)."""
     return {
         "actions": (np.float64, (n, robot.NUM_JOINTS)),
-        "policy_obs": (np.float32, (n, POLICY_SIZE)),  # to act on next (after a reset where one ended)
-        "critic_obs": (np.float32, (n, CRITIC_SIZE)),
-        "step_policy_obs": (np.float32, (n, POLICY_SIZE)),  # of the step (terminal where one ended)
-        "step_critic_obs": (np.float32, (n, CRITIC_SIZE)),
-        "reward": (np.float64, (n,)),
-        "terminated": (np.bool_, (n,)),
-        "truncated": (np.bool_, (n,)),
-        "fall": (np.bool_, (n,)),
-        "sim_unstable": (np.bool_, (n,)),
-        "lin_vel_error": (np.float64, (n,)),
-        "ang_vel_error": (np.float64, (n,)),
-        "terms": (np.float64, (n, len(REWARD_NAMES))),
-        "force": (np.float64, (n, 3)),
-        "command": (np.float64, (n, 3)),
-        "next_command": (np.float64, (n, 3)),
+        **{_OUT + name: (dtype, (n, *shape)) for name, (dtype, shape) in STEP_OUTPUT_COLUMNS.items()},
+        **{name: (dtype, (n, *shape)) for name, (dtype, shape) in BATCH_STEP_COLUMNS.items()},
     }
 
 
@@ -114,21 +126,17 @@ def _views(buffer: Any, n: int) -> dict[str, np.ndarray]:
     return views
 
 
-_PER_ROBOT = ("reward", "terminated", "truncated", "fall", "sim_unstable", "lin_vel_error", "ang_vel_error")
-
-
 def _write_step(shared: dict[str, np.ndarray], rows: slice, step: BatchStep) -> None:
-    out = step.out
-    for name in _PER_ROBOT:
-        shared[name][rows] = getattr(out, name)
-    shared["terms"][rows] = out.terms
-    shared["step_policy_obs"][rows] = out.policy_obs
-    shared["step_critic_obs"][rows] = out.critic_obs
-    shared["policy_obs"][rows] = step.policy_obs
-    shared["critic_obs"][rows] = step.critic_obs
-    shared["force"][rows] = step.force
-    shared["command"][rows] = step.command
-    shared["next_command"][rows] = step.next_command
+    for name in STEP_OUTPUT_COLUMNS:
+        shared[_OUT + name][rows] = getattr(step.out, name)
+    for name in BATCH_STEP_COLUMNS:
+        shared[name][rows] = getattr(step, name)
+
+
+def _read_step(shared: dict[str, np.ndarray]) -> BatchStep:
+    """The step of every robot from the shared block (copies: the block is written again next step)."""
+    out = StepOutput(**{name: shared[_OUT + name].copy() for name in STEP_OUTPUT_COLUMNS})
+    return BatchStep(out, **{name: shared[name].copy() for name in BATCH_STEP_COLUMNS})
 
 
 def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, int], message: bytes) -> bool:
@@ -262,26 +270,7 @@ class WorkerPool:
         shared = self._shared
         shared["actions"][:] = actions
         self._run(dict.fromkeys(range(len(self._rows)), _STEP), "stepping")
-        out = StepOutput(
-            policy_obs=shared["step_policy_obs"].copy(),
-            critic_obs=shared["step_critic_obs"].copy(),
-            reward=shared["reward"].copy(),
-            terminated=shared["terminated"].copy(),
-            truncated=shared["truncated"].copy(),
-            fall=shared["fall"].copy(),
-            sim_unstable=shared["sim_unstable"].copy(),
-            lin_vel_error=shared["lin_vel_error"].copy(),
-            ang_vel_error=shared["ang_vel_error"].copy(),
-            terms=shared["terms"].copy(),
-        )
-        return BatchStep(
-            out,
-            shared["force"].copy(),
-            shared["command"].copy(),
-            shared["policy_obs"].copy(),  # the step's observations, or the new episode's where one ended
-            shared["critic_obs"].copy(),
-            shared["next_command"].copy(),
-        )
+        return _read_step(shared)
 
     def close(self) -> None:
         """Stop the worker processes (waiting for them to finish their current message)."""
