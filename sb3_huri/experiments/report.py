@@ -185,8 +185,33 @@ def write_report(out: str | Path) -> Path:
     out = Path(out).resolve()
     settings, results = load_results(out)
     grouped = _by_method(results)
-    methods = list(grouped)
-    evaluated = [r for r in results if r.cases]
+    table1_lines, table1 = _table1_section(grouped)
+    returns_lines, returns = _returns_section(grouped)
+    tracking_lines, tracking = _tracking_section(grouped)
+    risk_lines, iqr = _risk_section(grouped)
+    lines = [
+        *_header_section(out, settings, results),
+        *_runs_section(results),
+        *table1_lines,
+        *returns_lines,
+        *tracking_lines,
+        *risk_lines,
+        *_orderings_section(list(grouped), table1, returns, tracking, iqr),
+    ]
+    if any(r.cases for r in results) or any(r.curve for r in results):
+        _plot_returns(out / RETURNS_FIGURE, grouped, settings.timesteps)
+        _plot_risk(out / RISK_FIGURE, grouped)
+    path = out / REPORT_FILE
+    atomic_write_text(path, "\n".join(lines))
+    return path
+
+
+_Stats = dict[str, dict[str, tuple[float, float, int]]]
+"""Per method, per case: mean, 95% half width and number of seeds."""
+
+
+def _header_section(out: Path, settings: Settings, results: list[RunResult]) -> list[str]:
+    methods = list(_by_method(results))
     lines = [
         f"# Experiment report: {settings.env}",
         "",
@@ -200,8 +225,11 @@ def write_report(out: str | Path) -> Path:
     missing = [f"{r.method} seed {r.seed} ({r.status.state})" for r in results if not r.cases]
     if missing:
         lines += [f"Not evaluated yet: {', '.join(missing)}.", ""]
+    return lines
 
-    lines += ["## Runs", "", "| method | seed | steps | training s | steps/s | evaluation s | state |"]
+
+def _runs_section(results: list[RunResult]) -> list[str]:
+    lines = ["## Runs", "", "| method | seed | steps | training s | steps/s | evaluation s | state |"]
     lines += ["|---|---|---|---|---|---|---|"]
     for r in results:
         s = r.status
@@ -211,9 +239,12 @@ def write_report(out: str | Path) -> Path:
             f"| {r.method} | {r.seed} | {s.steps} | {s.train_seconds:.0f} | {rate} | {s.eval_seconds:.0f} "
             f"| {state} |"
         )
+    return lines
 
-    # Table 1 analog.
-    lines += [
+
+def _table1_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
+    """Survival under disturbances (Table 1 analog), and its statistics per method and case."""
+    lines = [
         "",
         "## Survival under disturbances (Table 1 analog)",
         "",
@@ -223,7 +254,7 @@ def write_report(out: str | Path) -> Path:
         "| method | " + " | ".join(TABLE1_SCENARIOS) + " | mean | plane |",
         "|---|" + "---|" * (len(TABLE1_SCENARIOS) + 2),
     ]
-    table1: dict[str, dict[str, tuple[float, float, int]]] = {}
+    table1: _Stats = {}
     for method, runs in grouped.items():
         table1[method] = {case: _metric(runs, case, "survive") for case in TABLE1_SCENARIOS}
         per_seed = [
@@ -241,10 +272,15 @@ def write_report(out: str | Path) -> Path:
         cells.append(_cell(table1[method]["mean"]) + ref_mean)
         cells.append(_cell(_metric(runs, PLANE_CASE, "survive")))
         lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
+    return lines, table1
 
-    # Training return.
+
+def _returns_section(
+    grouped: dict[str, list[RunResult]],
+) -> tuple[list[str], dict[str, tuple[float, float, int]]]:
+    """Training return (Fig. 3 analog), and the mean return per method."""
     returns = {method: mean_ci([r.final_return for r in runs]) for method, runs in grouped.items()}
-    lines += [
+    lines = [
         "",
         "## Training return (Fig. 3 analog)",
         "",
@@ -254,13 +290,16 @@ def write_report(out: str | Path) -> Path:
         "| method | return | paper |",
         "|---|---|---|",
     ]
-    for method in methods:
+    for method in grouped:
         ref = paper.TRAINING_RETURN.get(method)
         reference = "-" if ref is None else f"{ref}"
         lines.append(f"| {_label(method)} | {_cell(returns[method], 1)} | {reference} |")
+    return lines, returns
 
-    # Velocity tracking.
-    lines += [
+
+def _tracking_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
+    """Velocity tracking (Fig. 4 / Table 2 analog), and the linear velocity error per method and case."""
+    lines = [
         "",
         "## Velocity tracking (Fig. 4 / Table 2 analog)",
         "",
@@ -271,7 +310,7 @@ def write_report(out: str | Path) -> Path:
         "| method | " + " | ".join(TRACKING_SCENARIOS) + " |",
         "|---|" + "---|" * len(TRACKING_SCENARIOS),
     ]
-    tracking: dict[str, dict[str, tuple[float, float, int]]] = {}
+    tracking: _Stats = {}
     for method, runs in grouped.items():
         tracking[method] = {case: _metric(runs, case, "lin_err") for case in TRACKING_SCENARIOS}
         cells = [
@@ -280,9 +319,12 @@ def write_report(out: str | Path) -> Path:
             for case in TRACKING_SCENARIOS
         ]
         lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
+    return lines, tracking
 
-    # Risk.
-    lines += [
+
+def _risk_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
+    """Risk along the episodes (Fig. 5 analog), and the IQR per method and condition."""
+    lines = [
         "",
         "## Risk along the episodes (Fig. 5 analog)",
         "",
@@ -299,15 +341,24 @@ def write_report(out: str | Path) -> Path:
         + " |",
         "|---|" + "---|" * (2 * len(RISK_CASES)),
     ]
-    iqr: dict[str, dict[str, tuple[float, float, int]]] = {}
+    iqr: _Stats = {}
     for method, runs in grouped.items():
         iqr[method] = {RISK_LABELS[c]: _metric(runs, c, "iqr") for c in RISK_CASES}
         cells = [_cell(iqr[method][RISK_LABELS[c]], 3) for c in RISK_CASES]
         cells += [_cell(_metric(runs, c, "beta"), 3) for c in RISK_CASES]
         lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
+    return lines, iqr
 
-    # Orderings.
-    lines += ["", "## The paper's orderings in our results", ""]
+
+def _orderings_section(
+    methods: list[str],
+    table1: _Stats,
+    returns: dict[str, tuple[float, float, int]],
+    tracking: _Stats,
+    iqr: _Stats,
+) -> list[str]:
+    """Whether the paper's orderings of the methods hold in these results."""
+    lines = ["", "## The paper's orderings in our results", ""]
     for case in (*TABLE1_SCENARIOS, "mean"):
         stats = {m: table1[m][case] for m in table1}
         lines.append(f"- Survival, {case} (Table 1): {_ordering(paper.RANKING, stats)}")
@@ -325,13 +376,7 @@ def write_report(out: str | Path) -> Path:
                 f"{_ordering(paper.RISK_ORDER, iqr[method])}"
             )
     lines.append("")
-
-    if evaluated or any(r.curve for r in results):
-        _plot_returns(out / RETURNS_FIGURE, grouped, settings.timesteps)
-        _plot_risk(out / RISK_FIGURE, grouped)
-    path = out / REPORT_FILE
-    atomic_write_text(path, "\n".join(lines))
-    return path
+    return lines
 
 
 def _plot_returns(path: Path, grouped: dict[str, list[RunResult]], timesteps: int) -> None:
