@@ -25,7 +25,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -43,7 +42,7 @@ def checkpoint_paths(folder: Path, steps: int) -> tuple[Path, Path]:
     return base / f"model_{steps}.zip", base / f"vecnormalize_{steps}.pkl"
 
 
-def _replace_file(write: Callable[[str], None], path: Path) -> None:
+def replace_file(write: Callable[[str], None], path: Path) -> None:
     """Write a file through ``write(temporary_path)`` and rename it to ``path`` (never a torn file)."""
     temporary = path.with_name(f".{path.name}.tmp")
     write(str(temporary))
@@ -100,9 +99,10 @@ def train_run(
     import gymnasium as gym
     import torch as th
     from rl_zoo3.utils import get_callback_list
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+    from stable_baselines3.common.callbacks import CallbackList
 
     from sb3_huri import HuRiPPO
+    from sb3_huri.experiments.bookkeeping import RunBookkeeping
     from sb3_huri.zoo import save_run
     from sb3_huri.zoo.presets import preset_env, preset_model
 
@@ -118,6 +118,7 @@ def train_run(
         if resume is not None:
             model = HuRiPPO.load(model_path, env, device="cpu")
             model.set_random_seed(seed)
+            model._last_obs = None  # start from a reset of the reseeded robots, not the saved observation
             status.resumed_from.append(resume)
             _trim_curve(folder, resume)
         else:
@@ -127,53 +128,13 @@ def train_run(
         status.steps = model.num_timesteps
         write_status(folder, status)
 
-        began, seconds_before = time.time(), status.train_seconds
-
-        def elapsed() -> float:
-            return seconds_before + time.time() - began
-
-        def checkpoint() -> None:
-            """Model and normalizer to temporary files, renamed, then named in the status (the commit)."""
-            steps = model.num_timesteps
-            model_path, stats_path = checkpoint_paths(folder, steps)
-            model_path.parent.mkdir(exist_ok=True)
-            _replace_file(model.save, model_path)
-            vec_normalize = model.get_vec_normalize_env()
-            if vec_normalize is not None:
-                _replace_file(vec_normalize.save, stats_path)
-            status.checkpoint, status.steps, status.train_seconds = steps, steps, elapsed()
-            write_status(folder, status)
-            _prune_checkpoints(folder, keep=steps)
-
-        class Bookkeeping(BaseCallback):
-            """A checkpoint between rollouts every ``checkpoint_freq`` steps; after every rollout, the
-            curve's row and the status."""
-
-            def _on_rollout_start(self) -> None:
-                if self.model.num_timesteps - (status.checkpoint or 0) >= settings.checkpoint_freq:
-                    checkpoint()
-
-            def _on_rollout_end(self) -> None:
-                buffer = self.model.ep_info_buffer or []
-                returns = [info["r"] for info in buffer]
-                lengths = [info["l"] for info in buffer]
-                mean = (sum(returns) / len(returns)) if returns else float("nan")
-                length = (sum(lengths) / len(lengths)) if lengths else float("nan")
-                steps = self.model.num_timesteps
-                with open(folder / CURVE_FILE, "a") as f:
-                    f.write(f"{steps},{mean!r},{length!r},{elapsed():.3f}\n")
-                status.steps, status.train_seconds = steps, elapsed()
-                write_status(folder, status)
-
-            def _on_step(self) -> bool:
-                return True
-
-        callbacks = [*get_callback_list(preset), Bookkeeping()]
+        bookkeeping = RunBookkeeping(folder, status, settings.checkpoint_freq)
+        callbacks = [*get_callback_list(preset), bookkeeping]
         remaining = settings.timesteps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=resume is None)
         if status.checkpoint != model.num_timesteps:
-            checkpoint()
+            bookkeeping.checkpoint(model)
         save_run(
             model,
             folder,
@@ -182,14 +143,14 @@ def train_run(
             env_id=settings.env,
         )
         status.trained_to, status.steps = settings.timesteps, model.num_timesteps
-        status.train_seconds = elapsed()
+        status.train_seconds = bookkeeping.elapsed()
         write_status(folder, status)
         return status
     finally:
         env.close()
 
 
-def _prune_checkpoints(folder: Path, keep: int) -> None:
+def prune_checkpoints(folder: Path, keep: int) -> None:
     """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest)."""
     steps = sorted(
         int(path.stem.split("_")[1])
