@@ -24,6 +24,30 @@ from zerith_gym.workers import available_cores
 EXECUTION_BACKENDS = ("local", "ray")
 
 
+def _settings(
+    env: str,
+    grid: list[tuple[str, int]],
+    timesteps: int,
+    eval_settings: EvalSettings | None,
+    checkpoint_freq: int,
+    conf: str | Path | None,
+) -> Settings:
+    """The experiment's settings, checked (ExperimentError), with the env's preset from ``conf``."""
+    from sb3_huri.zoo import read_preset
+
+    for name, value in (("timesteps", timesteps), ("checkpoint_freq", checkpoint_freq)):
+        if value < 1:
+            raise ExperimentError(f"{name} must be positive, got {value}")
+    eval_settings = eval_settings or EvalSettings()
+    if eval_settings.episodes < 1 or eval_settings.episode_steps < 1:
+        raise ExperimentError(f"evaluation needs at least one episode of one step, got {eval_settings}")
+    try:
+        preset = read_preset(env, conf)
+    except (OSError, ValueError) as error:
+        raise ExperimentError(str(error)) from error
+    return Settings(env, preset, int(timesteps), eval_settings, int(checkpoint_freq), grid)
+
+
 def run_experiment(
     out: str | Path,
     env: str,
@@ -49,24 +73,11 @@ def run_experiment(
     among the parallel runs; Ray default: 1). ``conf``: the RL Zoo hyperparameter file holding the env's
     preset (default: the packaged ``huri.yml``). ExperimentError for a bad grid or output folder.
     """
-    from sb3_huri.zoo import read_preset
-
     if backend not in EXECUTION_BACKENDS:
         raise ExperimentError(f"unknown backend {backend!r}; backends: {', '.join(EXECUTION_BACKENDS)}")
     grid = validate_grid(env, methods, seeds)
-    for name, value in (("timesteps", timesteps), ("checkpoint_freq", checkpoint_freq)):
-        if value < 1:
-            raise ExperimentError(f"{name} must be positive, got {value}")
-    eval_settings = eval_settings or EvalSettings()
-    if eval_settings.episodes < 1 or eval_settings.episode_steps < 1:
-        raise ExperimentError(f"evaluation needs at least one episode of one step, got {eval_settings}")
-    try:
-        preset = read_preset(env, conf)
-    except (OSError, ValueError) as error:
-        raise ExperimentError(str(error)) from error
     out = Path(out).resolve()
-    requested = Settings(env, preset, int(timesteps), eval_settings, int(checkpoint_freq), grid)
-    settings = open_experiment(out, requested)
+    settings = open_experiment(out, _settings(env, grid, timesteps, eval_settings, checkpoint_freq, conf))
 
     outcomes, todo = [], []
     for method, seed in grid:

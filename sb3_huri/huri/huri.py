@@ -570,29 +570,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         for epoch in range(self.n_epochs):
             approx_kl_divs = []
             for data in self.rollout_buffer.get(self.batch_size):
-                actions = data.actions
-                if isinstance(self.action_space, spaces.Discrete):
-                    actions = data.actions.long().flatten()
-                outputs, log_prob, entropy = self.policy.evaluate_actions(data.observations, actions)
-
-                advantages = data.advantages
-                if self.normalize_advantage and len(advantages) > 1:
-                    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-                log_ratio = log_prob - data.old_log_prob
-                ratio = th.exp(log_ratio)
-                policy_loss = -th.min(
-                    advantages * ratio, advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
-                ).mean()
-                value_loss = self._critic_loss(outputs, data, logs)
-                entropy_loss = -th.mean(-log_prob) if entropy is None else -th.mean(entropy)
-                loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * value_loss
-
-                logs["pg"].append(policy_loss.item())
-                logs["value"].append(value_loss.item())
-                logs["entropy"].append(entropy_loss.item())
-                logs["clip"].append(th.mean((th.abs(ratio - 1) > clip_range).float()).item())
-                with th.no_grad():
-                    approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
+                loss, approx_kl_div = self._minibatch_loss(data, clip_range, logs)
                 approx_kl_divs.append(approx_kl_div)
                 if self.target_kl is not None and approx_kl_div > 1.5 * self.target_kl:
                     continue_training = False
@@ -639,6 +617,36 @@ class HuRiPPO(OnPolicyAlgorithm):
             self.logger.record(
                 "train/critic_learning_rate", self.critic_lr_schedule(self._current_progress_remaining)
             )
+
+    def _minibatch_loss(
+        self, data: HuRiRolloutBufferSamples, clip_range: float, logs: dict[str, list]
+    ) -> tuple[th.Tensor, float]:
+        """PPO's loss on a minibatch (clipped surrogate, critic loss, entropy bonus) and its approximate KL
+        from the rollout's policy (before this minibatch's step); the parts are appended to `logs`."""
+        actions = data.actions
+        if isinstance(self.action_space, spaces.Discrete):
+            actions = data.actions.long().flatten()
+        outputs, log_prob, entropy = self.policy.evaluate_actions(data.observations, actions)
+
+        advantages = data.advantages
+        if self.normalize_advantage and len(advantages) > 1:
+            advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+        log_ratio = log_prob - data.old_log_prob
+        ratio = th.exp(log_ratio)
+        policy_loss = -th.min(
+            advantages * ratio, advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
+        ).mean()
+        value_loss = self._critic_loss(outputs, data, logs)
+        entropy_loss = -th.mean(-log_prob) if entropy is None else -th.mean(entropy)
+        loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * value_loss
+
+        logs["pg"].append(policy_loss.item())
+        logs["value"].append(value_loss.item())
+        logs["entropy"].append(entropy_loss.item())
+        logs["clip"].append(th.mean((th.abs(ratio - 1) > clip_range).float()).item())
+        with th.no_grad():
+            approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
+        return loss, approx_kl_div
 
     def _critic_loss(
         self, outputs: th.Tensor, data: HuRiRolloutBufferSamples, logs: dict[str, list]
