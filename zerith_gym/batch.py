@@ -1,134 +1,25 @@
-"""n Zerith-1 robots in one scenario: the env options, and the task logic joined with the physics.
+"""n Zerith-1 robots in one scenario in this process: the task logic joined with the physics.
 
 `Zerith1Env` (gymnasium, n = 1), `ZerithVecEnv` (SB3 VecEnv, n robots) and each worker process of a
 `ZerithVecEnv` are thin interfaces over `ZerithBatch`, so a batch of n robots runs exactly the code of n
-single envs. The options every env takes are declared once, in `ZerithOptions`; the per-step info dict
-and the observation format are built here for all of them.
+single envs. Their options and spaces are in `zerith_gym.options`, the per-step infos in `zerith_gym.infos`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
-from gymnasium import spaces
 
 from zerith_gym import robot
 from zerith_gym.contract import check_num_robots, check_scenario_change
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import resolve_reward_weights
-from zerith_gym.scenarios import Scenario, resolve_scenario
+from zerith_gym.scenarios import Scenario
 from zerith_gym.simulator import Simulator
-from zerith_gym.task import EPISODE_STEPS, StepOutput, ZerithTask, task_constants
+from zerith_gym.task import StepOutput, ZerithTask, task_constants
 from zerith_gym.terrain import Terrain
-
-OBS_MODES = ("dict", "policy")
-RESET_OPTIONS = ("command",)
-
-
-def check_command(command: Any, where: str) -> np.ndarray:
-    """`command` as a (3,) float array; ValueError naming `where` unless it is three finite numbers."""
-    value = np.asarray(command, dtype=float)
-    if value.shape != (3,) or not np.isfinite(value).all():
-        raise ValueError(
-            f"{where} must be three finite numbers (vx m/s, vy m/s, yaw rate rad/s), got {command!r}"
-        )
-    return value
-
-
-@dataclass(frozen=True)
-class ZerithOptions:
-    """The task options of every Zerith env (`gym.make("Zerith1-v0", ...)`, `Zerith1Env`, `ZerithVecEnv`).
-
-    Checked on construction: a bad value raises ValueError saying what is allowed.
-    """
-
-    scenario: str | Scenario = "train"
-    """A name in `zerith_gym.SCENARIOS`, or a custom `Scenario`."""
-    obs_mode: str = "dict"
-    """"dict": `Dict(policy=Box(46), critic=Box(139))`; "policy": the 46-d policy Box alone."""
-    command: tuple[float, float, float] | None = None
-    """A fixed (vx, vy, yaw rate) for every episode; None: the scenario's (drawn in train and nominal)."""
-    reward_weights: Mapping[str, float] | None = None
-    """Overrides of `zerith_gym.DEFAULT_REWARD_WEIGHTS`, by term name."""
-    terrain_seed: int = 0
-    """Seed of the uneven terrain's heights (fixed for the env's lifetime)."""
-    episode_steps: int = EPISODE_STEPS
-    """Control steps before the time-out truncation (1000: 20 s)."""
-
-    def __post_init__(self) -> None:
-        if self.obs_mode not in OBS_MODES:
-            raise ValueError(f"unknown obs_mode {self.obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
-        resolve_scenario(self.scenario)
-        if self.command is not None:
-            check_command(self.command, "command")
-        resolve_reward_weights(self.reward_weights)
-        if not isinstance(self.episode_steps, int | np.integer) or self.episode_steps < 1:
-            raise ValueError(f"episode_steps must be a positive integer, got {self.episode_steps!r}")
-
-    @classmethod
-    def from_kwargs(cls, kwargs: Mapping[str, Any], where: str = "Zerith1-v0") -> ZerithOptions:
-        """Options from keyword arguments; ValueError naming the unknown ones and the valid ones."""
-        names = [f.name for f in fields(cls)]
-        unknown = sorted(set(kwargs) - set(names))
-        if unknown:
-            raise ValueError(f"unknown {where} option(s) {unknown}; valid options: {', '.join(names)}")
-        return cls(**kwargs)
-
-    @property
-    def resolved_scenario(self) -> Scenario:
-        return resolve_scenario(self.scenario)
-
-    def fixed_command(self, scenario: Scenario) -> tuple[float, float, float] | None:
-        """The fixed command of every episode in `scenario`, if any: the option's, else the scenario's."""
-        if self.command is not None:
-            return tuple(check_command(self.command, "command").tolist())
-        return scenario.command
-
-
-def reset_command(options: Mapping[str, Any] | None) -> np.ndarray | None:
-    """The episode's command from reset `options` (None if not given); ValueError on unknown options."""
-    options = dict(options or {})
-    unknown = set(options) - set(RESET_OPTIONS)
-    if unknown:
-        valid = ", ".join(RESET_OPTIONS)
-        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {valid}")
-    if "command" not in options:
-        return None
-    return check_command(options["command"], "options['command']")
-
-
-def observation_space(obs_mode: str) -> spaces.Space:
-    """The observation space of one robot for `obs_mode`."""
-    policy = spaces.Box(-np.inf, np.inf, shape=(POLICY_SIZE,), dtype=np.float32)
-    if obs_mode == "policy":
-        return policy
-    critic = spaces.Box(-np.inf, np.inf, shape=(CRITIC_SIZE,), dtype=np.float32)
-    return spaces.Dict({"policy": policy, "critic": critic})
-
-
-def format_observation(obs_mode: str, policy: np.ndarray, critic: np.ndarray) -> Any:
-    """The observation as `obs_mode` gives it, from the policy and critic parts (one robot or a batch)."""
-    if obs_mode == "policy":
-        return policy
-    return {"policy": policy, "critic": critic}
-
-
-ACTION_SPACE = spaces.Box(-1.0, 1.0, shape=(robot.NUM_JOINTS,), dtype=np.float32)
-
-
-def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """Actions as float64 of `shape`, clipped to [-1, 1]; ValueError on a wrong shape or non-finite values."""
-    actions = np.array(actions, dtype=np.float64)
-    if actions.shape != shape:
-        raise ValueError(f"action must have shape {shape}, got {actions.shape}")
-    if not np.isfinite(actions).all():
-        raise ValueError(f"action contains NaN or infinite values: {actions}")
-    return np.minimum(
-        np.maximum(actions, -1.0, out=actions), 1.0, out=actions
-    )  # np.clip, without its overhead
 
 
 class BatchStep(NamedTuple):

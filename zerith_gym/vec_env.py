@@ -33,17 +33,17 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from zerith_gym import robot
-from zerith_gym.batch import (
+from zerith_gym.batch import ZerithBatch
+from zerith_gym.contract import Robots, check_num_robots
+from zerith_gym.infos import step_infos
+from zerith_gym.options import (
     ACTION_SPACE,
-    ZerithBatch,
     ZerithOptions,
     check_actions,
     format_observation,
     observation_space,
     reset_command,
 )
-from zerith_gym.contract import Robots, check_num_robots
-from zerith_gym.infos import step_infos
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.workers import WorkerPool, default_workers

@@ -43,9 +43,10 @@ from typing import Any
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithBatch, ZerithOptions
+from zerith_gym.batch import BatchStep, ZerithBatch
 from zerith_gym.contract import check_scenario_change
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import StepOutput

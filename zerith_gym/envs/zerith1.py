@@ -8,16 +8,16 @@ import gymnasium as gym
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import (
+from zerith_gym.batch import ZerithBatch
+from zerith_gym.infos import step_infos
+from zerith_gym.options import (
     ACTION_SPACE,
-    ZerithBatch,
     ZerithOptions,
     check_actions,
     format_observation,
     observation_space,
     reset_command,
 )
-from zerith_gym.infos import step_infos
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
 
@@ -55,7 +55,7 @@ class Zerith1Env(gym.Env):
     observation is returned with reward 0).
 
     ## Arguments
-    The task options (declared once, in `zerith_gym.batch.ZerithOptions`, for every Zerith env):
+    The task options (declared once, in `zerith_gym.options.ZerithOptions`, for every Zerith env):
     - `scenario`: a name in `zerith_gym.SCENARIOS` (default "train"), or a custom `Scenario`.
     - `obs_mode`: "dict" or "policy".
     - `command`: fixed (vx, vy, yaw rate); default: drawn during the episode (train, nominal) or

@@ -19,9 +19,10 @@ import numpy as np
 from mujoco import mjx
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithOptions
+from zerith_gym.batch import BatchStep
 from zerith_gym.contract import check_num_robots, check_scenario_change
 from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
+from zerith_gym.options import ZerithOptions
 from zerith_gym.physics import domain_model_fields
 from zerith_gym.randomization import DomainParams
 from zerith_gym.rewards import resolve_reward_weights
