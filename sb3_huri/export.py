@@ -19,10 +19,8 @@ The file uses opset 17 and IR version 8, which ONNX Runtime has read since its v
 from __future__ import annotations
 
 import argparse
-import difflib
 import json
 import os
-import pickle
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,11 +36,11 @@ from stable_baselines3.common.distributions import (
 )
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor, MlpExtractor
-from stable_baselines3.common.vec_env import VecNormalize
 from torch import nn
 
 from sb3_huri.huri.policies import AsymmetricMlpExtractor, PolicyCriticExtractor
 from sb3_huri.version import __version__
+from sb3_huri.zoo.runs import load_run
 
 FORMAT = "sb3_huri.actor/1"
 """Value of the ``format`` metadata entry: tells a runner the file is an actor written by this module."""
@@ -389,64 +387,6 @@ def export_actor(
     return proto
 
 
-def load_model(path: str | os.PathLike) -> Any:
-    """A saved on-policy model on the CPU: ``HuRiPPO`` for every HuRi method, SB3's ``PPO`` otherwise.
-
-    The saved policy class tells them apart: HuRi methods (the PPO baseline included) save a
-    ``HuRiPolicy``, runs of SB3's own ``PPO`` an ``ActorCriticPolicy``.
-    """
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.save_util import load_from_zip_file
-
-    from sb3_huri import HuRiPolicy, HuRiPPO
-
-    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
-    policy_class = (data or {}).get("policy_class")
-    algorithm = HuRiPPO if isinstance(policy_class, type) and issubclass(policy_class, HuRiPolicy) else PPO
-    return algorithm.load(path, device="cpu")
-
-
-def load_run_for_export(folder: str | os.PathLike, env_id: str, normalized: bool = True) -> tuple[Any, Any]:
-    """The model and ``VecNormalize`` of an RL Zoo run folder, with errors that say what is missing.
-
-    The folder holds ``<env_id>.zip`` and ``<env_id>/vecnormalize.pkl``, as ``sb3_huri.zoo.load_run``
-    reads them; the statistics are unpickled without building an environment (none is needed to
-    normalize). With `normalized` (the default) the statistics file must exist: exporting a model trained
-    on normalized observations without them would give a policy that silently misbehaves.
-    """
-    import gymnasium as gym
-
-    import zerith_gym  # noqa: F401  (registers Zerith1-v0)
-
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise FileNotFoundError(f"run folder {folder} not found")
-    if env_id not in gym.registry:
-        close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
-        hint = f"; did you mean {' or '.join(close)}?" if close else ""
-        raise ValueError(f"unknown env id {env_id!r}: no Gymnasium environment is registered under it{hint}")
-    model_path = folder / f"{env_id}.zip"
-    if not model_path.is_file():
-        raise FileNotFoundError(f"{model_path} not found: a run folder of {env_id} holds {env_id}.zip")
-    stats = folder / env_id / "vecnormalize.pkl"
-    if normalized and not stats.is_file():
-        raise FileNotFoundError(
-            f"{stats} not found: the run's VecNormalize statistics (observation mean and variance) are "
-            "expected there, as rl_zoo3 train writes them; for a run trained without VecNormalize pass "
-            "--unnormalized"
-        )
-    if not normalized and stats.is_file():
-        raise ValueError(f"--unnormalized given, but the run normalized its observations ({stats} exists)")
-    model = load_model(model_path)
-    if not normalized:
-        return model, None
-    with open(stats, "rb") as file:
-        normalizer = pickle.load(file)
-    if not isinstance(normalizer, VecNormalize):
-        raise ValueError(f"{stats} holds a {type(normalizer).__name__}, not VecNormalize statistics")
-    return model, normalizer
-
-
 def check_export(
     path: str | os.PathLike, model: Any, normalizer: Any, samples: int = 256, seed: int = 0
 ) -> float:
@@ -504,7 +444,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     except ImportError:
         parser.exit(2, "error: the onnx package is needed to export: pip install 'sb3-huri[deploy]'\n")
     try:
-        model, normalizer = load_run_for_export(args.run, args.env, normalized=not args.unnormalized)
+        model, normalizer = load_run(args.run, args.env, normalized=not args.unnormalized)
         run = args.run.resolve()
         export_actor(
             model,

@@ -32,9 +32,9 @@ from sb3_huri.export import (
     actor_of,
     check_export,
     export_actor,
-    load_run_for_export,
     main,
 )
+from sb3_huri.zoo.runs import load_run
 from zerith_gym import gait, robot
 from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE
 from zerith_gym.task import FALL_HEIGHT, FALL_TILT
@@ -166,7 +166,7 @@ def test_plain_sb3_ppo_with_a_box_observation_and_tanh_layers(tmp_path: Path) ->
     model.save(run / f"{ENV_ID}.zip")
     venv.save(str(run / ENV_ID / "vecnormalize.pkl"))
 
-    loaded, normalizer = load_run_for_export(run, ENV_ID)
+    loaded, normalizer = load_run(run, ENV_ID, normalized=True)
     assert type(loaded) is PPO
     output = tmp_path / "plain.onnx"
     export_actor(loaded, normalizer, ENV_ID, output)

@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.zoo.runs import load_run as load_run
 from sb3_huri.zoo.runs import next_run_folder as next_run_folder
 from sb3_huri.zoo.runs import save_run as save_run
 
@@ -160,30 +161,6 @@ def method_class(variant: str) -> type:
         (HuRiPPO,),
         {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(variant={variant!r})."},
     )
-
-
-def load_run(folder: str | os.PathLike, env_id: str) -> tuple[Any, Any | None]:
-    """The model of a run folder in RL Zoo's layout and its observation normalizer (``None`` if it used none).
-
-    A run folder holds ``<env_id>.zip`` and, when the run normalized observations,
-    ``<env_id>/vecnormalize.pkl`` (as ``rl_zoo3 train`` and ``examples/train_zerith.py`` write them).
-    The model is loaded on the CPU.
-    """
-    import gymnasium as gym
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from sb3_huri import HuRiPPO
-
-    register_environments()  # the run's env id may be Zerith1-v0, which VecNormalize.load builds
-    folder = Path(folder)
-    model_path = folder / f"{env_id}.zip"
-    if not model_path.is_file():
-        raise FileNotFoundError(f"{model_path} not found: a run folder holds {env_id}.zip")
-    model = HuRiPPO.load(model_path, device="cpu")
-    stats = folder / env_id / "vecnormalize.pkl"
-    if not stats.is_file():
-        return model, None
-    return model, VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
 
 
 ZOO_ONLY_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback", "frame_stack")

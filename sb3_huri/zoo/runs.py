@@ -7,7 +7,9 @@ A run folder ``<log_folder>/<algo>/<env_id>_<id>`` holds ``<env_id>.zip`` and ``
 
 from __future__ import annotations
 
+import difflib
 import os
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -54,3 +56,66 @@ def save_run(
         yaml.safe_dump(preset, f)
     with open(stats / "args.yml", "w") as f:
         yaml.safe_dump(args, f)
+
+
+def load_model(path: str | os.PathLike) -> Any:
+    """A saved on-policy model on the CPU: ``HuRiPPO`` for every HuRi method, SB3's ``PPO`` otherwise.
+
+    The saved policy class tells them apart: HuRi methods (the PPO baseline included) save a
+    ``HuRiPolicy``, runs of SB3's own ``PPO`` an ``ActorCriticPolicy``.
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from sb3_huri import HuRiPolicy, HuRiPPO
+
+    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    policy_class = (data or {}).get("policy_class")
+    algorithm = HuRiPPO if isinstance(policy_class, type) and issubclass(policy_class, HuRiPolicy) else PPO
+    return algorithm.load(path, device="cpu")
+
+
+def load_run(
+    folder: str | os.PathLike, env_id: str, normalized: bool | None = None
+) -> tuple[Any, Any | None]:
+    """The model of a run folder in RL Zoo's layout (on the CPU) and its observation normalizer.
+
+    The folder holds ``<env_id>.zip`` and, when the run normalized observations, ``<env_id>/vecnormalize.pkl``
+    (as ``rl_zoo3 train`` and ``examples/train_zerith.py`` write them). The statistics are unpickled without
+    building an environment (none is needed to normalize observations). `normalized`: None takes the
+    statistics if there are any (None otherwise); True requires them (a model trained on normalized
+    observations acts wrongly without them); False requires that there are none. Errors say what is missing.
+    """
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from sb3_huri.zoo import register_environments
+
+    register_environments()
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"run folder {folder} not found")
+    if env_id not in gym.registry:
+        close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
+        hint = f"; did you mean {' or '.join(close)}?" if close else ""
+        raise ValueError(f"unknown env id {env_id!r}: no Gymnasium environment is registered under it{hint}")
+    model_path = folder / f"{env_id}.zip"
+    if not model_path.is_file():
+        raise FileNotFoundError(f"{model_path} not found: a run folder of {env_id} holds {env_id}.zip")
+    stats = folder / env_id / "vecnormalize.pkl"
+    if normalized and not stats.is_file():
+        raise FileNotFoundError(
+            f"{stats} not found: the run's VecNormalize statistics (observation mean and variance) are "
+            "expected there, as rl_zoo3 train writes them; for a run trained without VecNormalize pass "
+            "--unnormalized"
+        )
+    if normalized is False and stats.is_file():
+        raise ValueError(f"--unnormalized given, but the run normalized its observations ({stats} exists)")
+    model = load_model(model_path)
+    if not stats.is_file():
+        return model, None
+    with open(stats, "rb") as file:
+        normalizer = pickle.load(file)
+    if not isinstance(normalizer, VecNormalize):
+        raise ValueError(f"{stats} holds a {type(normalizer).__name__}, not VecNormalize statistics")
+    return model, normalizer
