@@ -196,42 +196,18 @@ class HuRiPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        preset = resolve_variant(variant, distortion, use_iqr, use_rnd)
-        self.variant, self.distributional = variant, preset.distributional
-        self.distortion, self.use_iqr, self.use_rnd = preset.distortion, preset.use_iqr, preset.use_rnd
         policy_kwargs = dict(policy_kwargs or {})
-        n_quantiles = _agreeing("n_quantiles", n_quantiles, policy_kwargs, default=64)
-        self.n_quantiles = n_quantiles if self.distributional else 1
-        self.rnd_kwargs = (
-            _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if self.use_rnd else None
-        )
-        self.wang_beta, self.cvar_alpha = float(wang_beta), float(cvar_alpha)
-        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
-        levels = iqr_risk_levels or DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
-        self.iqr_risk_levels = tuple(float(v) for v in levels)
+        self._set_critic_and_risk(
+            variant, distortion, use_iqr, use_rnd, n_quantiles, rnd_kwargs, policy_kwargs,
+            wang_beta, cvar_alpha, iqr_thresholds, iqr_risk_levels,
+        )  # fmt: skip
         self.sr_lambda = float(sr_lambda)
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
         self.expectation_loss = expectation_loss
         self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
         self.critic_learning_rate = critic_learning_rate
         self.kl_learning_rate: float | None = None  # set by the first update with desired_kl
-        _check_hyperparameters(
-            n_steps=n_steps,
-            n_epochs=n_epochs,
-            n_minibatches=n_minibatches,
-            gamma=gamma,
-            gae_lambda=gae_lambda,
-            sr_lambda=self.sr_lambda,
-            cvar_alpha=self.cvar_alpha,
-            quantile_coef=quantile_coef,
-            expectation_coef=expectation_coef,
-            expectation_loss=expectation_loss,
-            desired_kl=desired_kl,
-            critic_learning_rate=critic_learning_rate,
-            iqr_thresholds=self.iqr_thresholds,
-            iqr_risk_levels=self.iqr_risk_levels,
-            **({"n_quantiles": self.n_quantiles} if self.distributional else {}),
-        )
+        self._check_settings(n_steps=n_steps, n_epochs=n_epochs, gamma=gamma, gae_lambda=gae_lambda)
         if isinstance(policy, str):
             # Both aliases name the same class: resolving it here lets "MlpPolicy" take Dict observations.
             policy = self._get_policy_from_name(policy)  # type: ignore[assignment]
@@ -256,14 +232,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             seed=seed,
             _init_setup_model=False,
         )
-        if self.env is not None and not isinstance(self.action_space, SUPPORTED_ACTION_SPACES):
-            raise ValueError(
-                f"HuRiPPO does not support the action space {self.action_space}: "
-                f"expected one of {[space.__name__ for space in SUPPORTED_ACTION_SPACES]}"
-            )
-        self.batch_size = batch_size
-        if self.env is not None:
-            self.batch_size = _resolve_batch_size(batch_size, n_minibatches, n_steps * self.env.num_envs)
+        self.batch_size = self._checked_batch_size(batch_size)
         self.n_epochs = n_epochs
         self.clip_range = clip_range
         self.normalize_advantage = normalize_advantage
@@ -271,6 +240,63 @@ class HuRiPPO(OnPolicyAlgorithm):
 
         if _init_setup_model:
             self._setup_model()
+
+    def _set_critic_and_risk(
+        self,
+        variant: str,
+        distortion: str | None,
+        use_iqr: bool | None,
+        use_rnd: bool | None,
+        n_quantiles: int | None,
+        rnd_kwargs: dict[str, Any] | None,
+        policy_kwargs: dict[str, Any],
+        wang_beta: float,
+        cvar_alpha: float,
+        iqr_thresholds: tuple[float, float],
+        iqr_risk_levels: tuple[float, float, float] | None,
+    ) -> None:
+        """The method's critic and risk settings: the variant's preset, overridden by the arguments."""
+        preset = resolve_variant(variant, distortion, use_iqr, use_rnd)
+        self.variant, self.distributional = variant, preset.distributional
+        self.distortion, self.use_iqr, self.use_rnd = preset.distortion, preset.use_iqr, preset.use_rnd
+        n_quantiles = _agreeing("n_quantiles", n_quantiles, policy_kwargs, default=64)
+        self.n_quantiles = n_quantiles if self.distributional else 1
+        self.rnd_kwargs = (
+            _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if self.use_rnd else None
+        )
+        self.wang_beta, self.cvar_alpha = float(wang_beta), float(cvar_alpha)
+        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
+        levels = iqr_risk_levels or DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
+        self.iqr_risk_levels = tuple(float(v) for v in levels)
+
+    def _check_settings(self, **others: Any) -> None:
+        """ValueError naming the first invalid hyperparameter (the attributes set so far and `others`)."""
+        _check_hyperparameters(
+            **others,
+            n_minibatches=self.n_minibatches,
+            sr_lambda=self.sr_lambda,
+            cvar_alpha=self.cvar_alpha,
+            quantile_coef=self.quantile_coef,
+            expectation_coef=self.expectation_coef,
+            expectation_loss=self.expectation_loss,
+            desired_kl=self.desired_kl,
+            critic_learning_rate=self.critic_learning_rate,
+            iqr_thresholds=self.iqr_thresholds,
+            iqr_risk_levels=self.iqr_risk_levels,
+            **({"n_quantiles": self.n_quantiles} if self.distributional else {}),
+        )
+
+    def _checked_batch_size(self, batch_size: int | None) -> int | None:
+        """The minibatch size for the env (as given without an env); ValueError for an unsupported action
+        space."""
+        if self.env is None:
+            return batch_size
+        if not isinstance(self.action_space, SUPPORTED_ACTION_SPACES):
+            raise ValueError(
+                f"HuRiPPO does not support the action space {self.action_space}: "
+                f"expected one of {[space.__name__ for space in SUPPORTED_ACTION_SPACES]}"
+            )
+        return _resolve_batch_size(batch_size, self.n_minibatches, self.n_steps * self.env.num_envs)
 
     def _setup_model(self) -> None:
         self._setup_lr_schedule()
