@@ -30,7 +30,7 @@ from sb3_huri.experiments.layout import (
     run_folder,
 )
 from sb3_huri.experiments.report import _ordering, mean_ci, t_quantile
-from sb3_huri.experiments.training import read_curve
+from sb3_huri.experiments.run_files import read_curve
 from sb3_huri.zoo import load_run, next_run_folder
 
 ENV = "Zerith1-v0"

@@ -301,7 +301,7 @@ def test_every_backend_keeps_the_robots_contract():
 
 
 def test_the_worker_shared_block_holds_every_field_of_the_step_record():
-    from zerith_gym.batch import BatchStep
+    from zerith_gym.contract import BatchStep
     from zerith_gym.task import StepOutput
     from zerith_gym.workers import BATCH_STEP_COLUMNS, STEP_OUTPUT_COLUMNS
 

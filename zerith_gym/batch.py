@@ -8,29 +8,17 @@ single envs. Their options and spaces are in `zerith_gym.options`, the per-step 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import NamedTuple
 
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.contract import check_num_robots, check_scenario_change
+from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
 from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario
 from zerith_gym.simulator import Simulator
-from zerith_gym.task import StepOutput, ZerithTask, task_constants
+from zerith_gym.task import ZerithTask, task_constants
 from zerith_gym.terrain import Terrain
-
-
-class BatchStep(NamedTuple):
-    """One control step of n robots, with the robots whose episode ended already reset."""
-
-    out: StepOutput  # the step; its observations are the terminal ones of the robots that ended
-    force: np.ndarray  # (n, 3) external force on each target body during the step
-    command: np.ndarray  # (n, 3) command during the step
-    policy_obs: np.ndarray  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
-    critic_obs: np.ndarray  # (n, CRITIC_SIZE)
-    next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
 
 
 class ZerithBatch:

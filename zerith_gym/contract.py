@@ -9,14 +9,23 @@ robot axis, so the vec env, SB3 and RL Zoo never see which one runs.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from zerith_gym.scenarios import Scenario
+from zerith_gym.task import StepOutput
 
-if TYPE_CHECKING:
-    from zerith_gym.batch import BatchStep
+
+class BatchStep(NamedTuple):
+    """One control step of n robots, with the robots whose episode ended already reset."""
+
+    out: StepOutput  # the step; its observations are the terminal ones of the robots that ended
+    force: np.ndarray  # (n, 3) external force on each target body during the step
+    command: np.ndarray  # (n, 3) command during the step
+    policy_obs: np.ndarray  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
+    critic_obs: np.ndarray  # (n, CRITIC_SIZE)
+    next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
 
 
 class Robots(Protocol):

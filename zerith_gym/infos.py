@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from zerith_gym.rewards import TermValues
 
 if TYPE_CHECKING:
-    from zerith_gym.batch import BatchStep
+    from zerith_gym.contract import BatchStep
 
 _COMPUTED = ("fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command",
              "reward_terms", "TimeLimit.truncated")  # fmt: skip

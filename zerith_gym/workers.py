@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep, ZerithBatch
-from zerith_gym.contract import check_scenario_change
+from zerith_gym.batch import ZerithBatch
+from zerith_gym.contract import BatchStep, check_scenario_change
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import REWARD_NAMES

@@ -12,7 +12,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_huri.experiments.layout import RunStatus, write_status
-from sb3_huri.experiments.training import CURVE_FILE, checkpoint_paths, prune_checkpoints, replace_file
+from sb3_huri.experiments.run_files import CURVE_FILE, checkpoint_paths, prune_checkpoints, replace_file
 
 
 class RunBookkeeping(BaseCallback):

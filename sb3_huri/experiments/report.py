@@ -44,7 +44,7 @@ from sb3_huri.experiments.layout import (
     read_status,
     run_folder,
 )
-from sb3_huri.experiments.training import read_curve
+from sb3_huri.experiments.run_files import read_curve
 
 REPORT_FILE = "report.md"
 RETURNS_FIGURE = "returns.png"

@@ -22,58 +22,10 @@ later command with a larger ``--timesteps`` trains on from it.
 
 from __future__ import annotations
 
-import csv
-import io
-import os
-from collections.abc import Callable
 from pathlib import Path
 
-from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_text, write_status
-
-CURVE_FILE = "curve.csv"
-CURVE_COLUMNS = ("timesteps", "ep_rew_mean", "ep_len_mean", "seconds")
-CHECKPOINTS = "checkpoints"
-KEEP_CHECKPOINTS = 2
-
-
-def checkpoint_paths(folder: Path, steps: int) -> tuple[Path, Path]:
-    """The model and normalizer files of the checkpoint after ``steps`` steps."""
-    base = folder / CHECKPOINTS
-    return base / f"model_{steps}.zip", base / f"vecnormalize_{steps}.pkl"
-
-
-def replace_file(write: Callable[[str], None], path: Path) -> None:
-    """Write a file through ``write(temporary_path)`` and rename it to ``path`` (never a torn file)."""
-    temporary = path.with_name(f".{path.name}.tmp")
-    write(str(temporary))
-    os.replace(temporary, path)
-
-
-def read_curve(folder: Path) -> list[dict[str, float]]:
-    """The rows of a run's ``curve.csv`` (a torn last line, from a kill while writing it, is left out)."""
-    path = folder / CURVE_FILE
-    if not path.exists():
-        return []
-    rows = []
-    with open(path, newline="") as f:
-        for row in csv.DictReader(f):
-            try:
-                rows.append({key: float(row[key]) for key in CURVE_COLUMNS})
-            except (KeyError, TypeError, ValueError):
-                continue
-    return rows
-
-
-def _trim_curve(folder: Path, steps: int) -> None:
-    """Keep the curve's rows up to ``steps`` (those after a checkpoint are trained again on resuming)."""
-    kept = [row for row in read_curve(folder) if row["timesteps"] <= steps]
-    text = io.StringIO()
-    writer = csv.DictWriter(text, CURVE_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in kept:
-        values = {key: repr(value) for key, value in row.items()}
-        writer.writerow({**values, "timesteps": int(row["timesteps"])})
-    atomic_write_text(folder / CURVE_FILE, text.getvalue())
+from sb3_huri.experiments.layout import RunStatus, Settings, write_status
+from sb3_huri.experiments.run_files import checkpoint_paths, trim_curve
 
 
 def env_workers(cpus: int, n_envs: int) -> int:
@@ -120,10 +72,10 @@ def train_run(
             model.set_random_seed(seed)
             model._last_obs = None  # start from a reset of the reseeded robots, not the saved observation
             status.resumed_from.append(resume)
-            _trim_curve(folder, resume)
+            trim_curve(folder, resume)
         else:
             model = preset_model(preset, env, method=status.method, seed=status.seed, device="cpu", verbose=0)
-            _trim_curve(folder, 0)
+            trim_curve(folder, 0)
         status.state, status.trained_to, status.evaluated = "training", None, None
         status.steps = model.num_timesteps
         write_status(folder, status)
@@ -148,16 +100,3 @@ def train_run(
         return status
     finally:
         env.close()
-
-
-def prune_checkpoints(folder: Path, keep: int) -> None:
-    """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest)."""
-    steps = sorted(
-        int(path.stem.split("_")[1])
-        for path in (folder / CHECKPOINTS).glob("model_*.zip")
-        if path.stem.split("_")[1].isdigit()
-    )
-    for old in steps[:-KEEP_CHECKPOINTS]:
-        if old != keep:
-            for path in checkpoint_paths(folder, old):
-                path.unlink(missing_ok=True)

@@ -19,8 +19,7 @@ import numpy as np
 from mujoco import mjx
 
 from zerith_gym import robot
-from zerith_gym.batch import BatchStep
-from zerith_gym.contract import check_num_robots, check_scenario_change
+from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
 from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
 from zerith_gym.options import ZerithOptions
 from zerith_gym.physics import domain_model_fields
