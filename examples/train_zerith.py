@@ -145,7 +145,11 @@ def main() -> None:
         callbacks = [c for c in callbacks if not isinstance(c, RandomizationCurriculum)]
         callbacks.append(RandomizationCurriculum(args.curriculum_steps, args.curriculum_stages))
     curriculum = next((c for c in callbacks if isinstance(c, RandomizationCurriculum)), None)
-    if curriculum is not None:
+    if curriculum is not None and state.curriculum_stage is not None:
+        if not 0 <= state.curriculum_stage <= curriculum.stages:
+            parser.error(
+                f"the run reached curriculum stage {state.curriculum_stage}, beyond {curriculum.stages}"
+            )
         curriculum.start_stage = state.curriculum_stage
     every = max(args.checkpoint_freq // env.num_envs, 1)
     callbacks.append(CheckpointCallback(every, str(run / "checkpoints"), save_vecnormalize=True))
