@@ -271,20 +271,10 @@ class HuRiPPO(OnPolicyAlgorithm):
 
     def _check_settings(self, **others: Any) -> None:
         """ValueError naming the first invalid hyperparameter (the attributes set so far and `others`)."""
-        _check_hyperparameters(
-            **others,
-            n_minibatches=self.n_minibatches,
-            sr_lambda=self.sr_lambda,
-            cvar_alpha=self.cvar_alpha,
-            quantile_coef=self.quantile_coef,
-            expectation_coef=self.expectation_coef,
-            expectation_loss=self.expectation_loss,
-            desired_kl=self.desired_kl,
-            critic_learning_rate=self.critic_learning_rate,
-            iqr_thresholds=self.iqr_thresholds,
-            iqr_risk_levels=self.iqr_risk_levels,
-            **({"n_quantiles": self.n_quantiles} if self.distributional else {}),
-        )
+        checked = [name for name in _RULES if name not in others and name != "n_quantiles"]
+        if self.distributional:
+            checked.append("n_quantiles")
+        _check_hyperparameters(**others, **{name: getattr(self, name) for name in checked})
 
     def _checked_batch_size(self, batch_size: int | None) -> int | None:
         """The minibatch size for the env (as given without an env); ValueError for an unsupported action
