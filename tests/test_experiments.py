@@ -30,7 +30,7 @@ from sb3_huri.experiments.layout import (
     run_folder,
 )
 from sb3_huri.experiments.report import _ordering, mean_ci, t_quantile
-from sb3_huri.experiments.run_files import read_curve
+from sb3_huri.experiments.run_files import prune_checkpoints, read_curve
 from sb3_huri.zoo import load_run, next_run_folder
 
 ENV = "Zerith1-v0"
@@ -231,6 +231,18 @@ def test_a_killed_or_interrupted_command_continues_from_the_last_checkpoint(
     # 4. Finished: the command skips it.
     again = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
     assert again.returncode == 0 and "1 finished earlier, 0 to train or evaluate" in again.stdout
+
+
+def test_pruning_finishes_a_checkpoint_half_deleted_by_a_kill(tmp_path: Path) -> None:
+    folder = tmp_path / "run"
+    (folder / "checkpoints").mkdir(parents=True)
+    names = ["vecnormalize_512.pkl", "model_1024.zip", "vecnormalize_1024.pkl", "model_1536.zip"]
+    names += ["vecnormalize_1536.pkl", "model_2048.zip", "vecnormalize_2048.pkl"]
+    for name in names:  # model_512.zip is gone: the kill came between the checkpoint's two files
+        (folder / "checkpoints" / name).write_bytes(b"x")
+    prune_checkpoints(folder, keep=2048)
+    left = sorted(p.name for p in (folder / "checkpoints").iterdir())
+    assert left == ["model_1536.zip", "model_2048.zip", "vecnormalize_1536.pkl", "vecnormalize_2048.pkl"]
 
 
 # ------------------------------------------------------------------------------------------------- ray

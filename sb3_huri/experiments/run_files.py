@@ -61,11 +61,18 @@ def trim_curve(folder: Path, steps: int) -> None:
 
 
 def prune_checkpoints(folder: Path, keep: int) -> None:
-    """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest)."""
+    """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest).
+
+    Steps are gathered from models and normalizers alike, so a half-deleted checkpoint (a kill between
+    its two files) is finished off by the next prune instead of being left behind.
+    """
     steps = sorted(
-        int(path.stem.split("_")[1])
-        for path in (folder / CHECKPOINTS).glob("model_*.zip")
-        if path.stem.split("_")[1].isdigit()
+        {
+            int(path.stem.split("_")[1])
+            for pattern in ("model_*.zip", "vecnormalize_*.pkl")
+            for path in (folder / CHECKPOINTS).glob(pattern)
+            if path.stem.split("_")[1].isdigit()
+        }
     )
     for old in steps[:-KEEP_CHECKPOINTS]:
         if old != keep:
