@@ -158,11 +158,13 @@ def test_report_sets_the_grid_beside_the_papers_numbers(local_grid) -> None:
         "Table 1 analog",
         "Fig. 3 analog",
         "Fig. 4 / Table 2 analog",
+        "Tables 8 and 9 analog",
         "Fig. 5 analog",
         "orderings",
     ):
         assert heading in text
     assert "(0.856)" in text and "(0.575)" in text and "90.86" in text  # the paper's numbers
+    assert "(0.578)" in text and "(0.927)" in text  # its terrain tables (8 and 9)
     assert "HuRi (`huri`)" in text and "Baseline (PPO) (`huri-baseline`)" in text
     assert "± " in text  # two seeds: confidence intervals
     assert (

@@ -35,6 +35,7 @@ from zerith_gym.task import (  # noqa: E402
     task_constants,
 )
 from zerith_gym.terrain import Terrain  # noqa: E402
+from zerith_gym.terrain_levels import TerrainLevels  # noqa: E402
 
 COMMAND = (0.5, 0.0, 0.0)
 
@@ -50,7 +51,7 @@ def _assert_tree_close(numpy_tree, jax_tree, rtol=2e-5, atol=2e-5):
         )
 
 
-@pytest.mark.parametrize("scenario", ["train", "uneven"])
+@pytest.mark.parametrize("scenario", ["train", "uneven", "multi-terrain"])
 def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     """One definition of the task: the same functions on numpy (float64) and traced by jax (float32)."""
     rng = np.random.default_rng(0)
@@ -59,9 +60,12 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     model = build_model(terrain)
     arrays = scenario_arrays(sc, None, 1000)
     reset_u, step_u = rng.random((n, RESET_DRAWS)), rng.random((n, STEP_DRAWS))
-    jitted_reset = jax.jit(lambda u, a: reset_values(u, a, terrain.spec))
+    spawn = TerrainLevels(terrain.spec, np.arange(n)).spawn_points(np.arange(n))
+    jitter = terrain.spec.spawn_jitter
+    jitted_reset = jax.jit(lambda u, a, xy: reset_values(u, a, xy, jitter))
     _assert_tree_close(
-        reset_values(reset_u, arrays, terrain.spec), jitted_reset(_to_jax(reset_u), _to_jax(arrays))
+        reset_values(reset_u, arrays, spawn, jitter),
+        jitted_reset(_to_jax(reset_u), _to_jax(arrays), jnp.asarray(spawn)),
     )
 
     step_count = rng.integers(0, 1000, n)
@@ -69,7 +73,7 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     args = (step_u, step_count, force, command, arrays)
     _assert_tree_close(step_disturbances(*args), jax.jit(step_disturbances)(*_to_jax(args)))
 
-    vector = reset_values(reset_u, arrays, terrain.spec).domain_vector
+    vector = reset_values(reset_u, arrays, spawn, jitter).domain_vector
     nominal = NominalModel.capture(model, terrain)
 
     def fields(vector):
@@ -80,8 +84,8 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     # Sensor readings of robots standing on the terrain, with noise on every quantity.
     layout = robot.Sensors.layout(model)
     sensordata = rng.normal(scale=0.3, size=(n, model.nsensordata))
-    sensordata[:, layout.base_pos] += np.array([*sc.terrain.spawn_xy, 0.75])
-    sensordata[:, layout.foot_pos] += np.tile([*sc.terrain.spawn_xy, 0.0], 2)
+    sensordata[:, layout.base_pos] += np.column_stack([spawn, np.full(n, 0.75)])
+    sensordata[:, layout.foot_pos] += np.tile(np.column_stack([spawn, np.zeros(n)]), 2)
     sensordata[:, layout.foot_force] *= 100.0
     constants = task_constants(
         terrain, np.array([model.joint(j).range for j in robot.JOINT_NAMES]), np.ones(22), 1000

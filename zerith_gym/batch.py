@@ -19,14 +19,18 @@ from zerith_gym.scenarios import Scenario
 from zerith_gym.simulator import Simulator
 from zerith_gym.task import ZerithTask, task_constants
 from zerith_gym.terrain import Terrain
+from zerith_gym.terrain_levels import LevelRule
 
 
 class ZerithBatch:
     """`num_robots` robots: their simulations (`sim`) and task state (`task`), reset and stepped together in
     this process (the robots contract, `zerith_gym.contract.Robots`; `step` may also leave ended episodes
-    for the caller to reset, as the single env does)."""
+    for the caller to reset, as the single env does). `first_robot`: the env-wide index of the first of
+    them (a worker's slice starts later), which sets their tiles on a tile terrain."""
 
-    def __init__(self, num_robots: int, options: ZerithOptions, physics_threads: int = 1) -> None:
+    def __init__(
+        self, num_robots: int, options: ZerithOptions, physics_threads: int = 1, first_robot: int = 0
+    ) -> None:
         self.num_robots = check_num_robots(num_robots)
         self.options = options
         self.scenario = options.resolved_scenario
@@ -44,6 +48,7 @@ class ZerithBatch:
                 int(options.episode_steps),
             ),
             options.fixed_command(self.scenario),
+            first_robot,
         )
 
     def set_scenario(self, scenario: Scenario) -> None:
@@ -52,6 +57,10 @@ class ZerithBatch:
         check_scenario_change(self.scenario, scenario)
         self.scenario = scenario
         self.task.set_scenario(scenario, self.options.fixed_command(scenario))
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Move robots between terrain levels by `rule` as episodes end (`zerith_gym.terrain_levels`)."""
+        self.task.set_level_rule(rule)
 
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
         """Give robots their random generators for the next resets and steps (robot index -> generator)."""
@@ -82,6 +91,7 @@ class ZerithBatch:
         With `autoreset`, robots whose episode ended start a new one, and the returned next observations
         and commands are the new episode's.
         """
+        level = self.task.tiles.levels.copy()
         targets, drawn = self.task.before_physics(actions)
         force, command = drawn.force.copy(), self.task.command.copy()  # the task's arrays change later
         kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
@@ -92,7 +102,7 @@ class ZerithBatch:
         if len(ended):  # the reset writes into the task's arrays: keep the step's values
             policy, critic = policy.copy(), critic.copy()
             policy[ended], critic[ended] = self.reset(ended)
-        return BatchStep(out, force, command, policy, critic, self.task.command)
+        return BatchStep(out, force, command, policy, critic, self.task.command, level)
 
     def close(self) -> None:
         self.sim.close()

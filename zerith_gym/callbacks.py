@@ -4,6 +4,8 @@
   rollout, so that a user tuning reward weights sees which term moves.
 - `RandomizationCurriculum` grows the training scenario's randomization, pushes and external forces from
   none to full during training, by timesteps, optionally gated by the fall rate.
+- `TerrainCurriculum` moves each robot of a tile terrain (the `terrain` scenario) up a level when it walks
+  far enough and down when it falls or falls short, and logs the mean level.
 - `UpdateThreads` gives torch one thread while the robots are stepped and every core while the networks
   are updated, when the env's worker processes sleep (docs/performance.md has the gain).
 
@@ -20,6 +22,11 @@ or in an RL Zoo hyperparameter file:
       - zerith_gym.callbacks.RandomizationCurriculum:
           steps: 6000000
       - zerith_gym.callbacks.UpdateThreads
+
+and on terrains (`env_kwargs: {scenario: terrain}`):
+
+    callback:
+      - zerith_gym.callbacks.TerrainCurriculum
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario, scaled_scenario
+from zerith_gym.terrain_levels import LevelRule
 from zerith_gym.workers import available_cores
 
 
@@ -168,6 +176,53 @@ class RandomizationCurriculum(BaseCallback):
             self._episodes += 1
             self._falls += bool(infos[i].get("fall", False))
         return True
+
+
+class TerrainCurriculum(BaseCallback):
+    """Move robots between the levels of a tile terrain as their episodes end (`zerith_gym.terrain_levels`).
+
+    At the start of training it hands the env a `LevelRule`: a robot moves up a level when it walked at
+    least `promote_distance` m from its spawn point without falling (default: half a tile, to its tile's
+    edge), down when it fell or walked less than `demote_fraction` of the distance its commands asked
+    for; at the end of training the levels stay where they are and stop moving. The env applies the rule
+    at each robot's reset, so the next episode starts on the new level. Logs `terrain/level` (the mean
+    level the robots walked on in the rollout's last step) and `terrain/max_level_share` (the share at
+    the top level). Works with `ZerithVecEnv` (cpu backend) and SB3's VecEnvs of `Zerith1Env`; ValueError
+    at the start of training if the env's terrain has no tiles.
+    """
+
+    def __init__(
+        self, promote_distance: float | None = None, demote_fraction: float = 0.5, verbose: int = 0
+    ) -> None:
+        super().__init__(verbose)
+        self.rule = LevelRule(promote_distance, demote_fraction)
+        self._levels: list[int] = []
+
+    def _on_training_start(self) -> None:
+        self._set_rule(self.rule)
+        self._native = hasattr(self.training_env.unwrapped, "terrain_levels")  # ZerithVecEnv keeps them
+
+    def _on_training_end(self) -> None:
+        self._set_rule(None)
+
+    def _set_rule(self, rule: LevelRule | None) -> None:
+        env = self.training_env.unwrapped
+        if hasattr(env, "set_level_rule"):
+            env.set_level_rule(rule)
+        else:
+            env.env_method("set_level_rule", rule)
+
+    def _on_step(self) -> bool:
+        if not self._native:
+            self._levels = [info["terrain_level"] for info in self.locals["infos"]]
+        return True
+
+    def _on_rollout_end(self) -> None:
+        env = self.training_env.unwrapped
+        levels = np.asarray(env.terrain_levels if self._native else self._levels)
+        top = self.training_env.get_attr("scenario")[0].terrain.num_levels - 1
+        self.logger.record("terrain/level", float(levels.mean()))
+        self.logger.record("terrain/max_level_share", float((levels == top).mean()))
 
 
 class UpdateThreads(BaseCallback):

@@ -15,6 +15,7 @@ import numpy as np
 
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import StepOutput
+from zerith_gym.terrain_levels import LevelRule
 
 
 class BatchStep(NamedTuple):
@@ -26,6 +27,7 @@ class BatchStep(NamedTuple):
     policy_obs: np.ndarray  # (n, POLICY_SIZE) observations to act on next: after the reset where ended
     critic_obs: np.ndarray  # (n, CRITIC_SIZE)
     next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
+    terrain_level: np.ndarray  # (n,) int, the terrain level (tile row) each robot walked on in the step
 
 
 class Robots(Protocol):
@@ -53,6 +55,9 @@ class Robots(Protocol):
 
     def set_scenario(self, scenario: Scenario) -> None:
         """Follow `scenario` from now on (`check_scenario_change` says which changes are possible)."""
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Move robots between terrain levels by `rule` when their episodes end (None: stop)."""
 
     def close(self) -> None:
         """Stop whatever runs beside this process (workers, threads); safe to call twice."""

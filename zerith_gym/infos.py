@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from zerith_gym.contract import BatchStep
 
 _COMPUTED = ("fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command",
-             "reward_terms", "TimeLimit.truncated")  # fmt: skip
+             "reward_terms", "terrain_level", "TimeLimit.truncated")  # fmt: skip
 """The keys every robot's info has each step (documented in `Zerith1Env`)."""
 _COMPUTED_KEYS = frozenset(_COMPUTED)
 
@@ -56,6 +56,8 @@ class RobotInfo(MutableMapping[str, Any]):
             return self._step.command[i].copy()
         if key == "reward_terms":
             return TermValues(out.terms[i])
+        if key == "terrain_level":
+            return int(self._step.terrain_level[i])
         if key == "TimeLimit.truncated":
             return False  # the env writes True where a time limit ended the episode
         raise KeyError(key)

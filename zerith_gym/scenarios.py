@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, fields, replace
 from zerith_gym.commands import CommandRanges
 from zerith_gym.disturbances import NO_FORCE, ForceCycle, ForceProgram, ForceSchedule
 from zerith_gym.randomization import NOMINAL, TEST_COM, TEST_FRICTION, TEST_LOAD, TRAIN, RandomizationRanges
-from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec
+from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec, tile_terrain
 
 TEST_COMMAND = (1.0, 0.0, 0.0)
 """The evaluation command: 1 m/s forward (beyond the training range), no turning."""
@@ -61,6 +61,29 @@ friction and CoM ranges, pushes every 4 s, commands up to 1 m/s, and the test fo
 continuous U[0, 100] N and sudden U[150, 200] N on the centroid, then the hands, then the feet."""
 
 
+_TERRAIN_KINDS = ("slope_up", "slope_down", "discrete")
+TERRAIN = Scenario(
+    "terrain",
+    TRAIN,
+    ForceSchedule("centroid", (0.0, 10.0), period_steps=5, duration_steps=5),
+    tile_terrain(kinds=_TERRAIN_KINDS, levels=10, start_levels=3),
+)
+"""The paper's terrain training (appendix A.7): the train scenario on rough slopes up and down and discrete
+blocks, 10 levels, robots starting on the lowest three (a `TerrainCurriculum` moves them)."""
+
+
+def _platform(height: float) -> Scenario:
+    """Table 8: step down from a `height` m platform at 1 m/s, a centroid force U[0, 100] N drawn every
+    2 s and held, the base's mass changed by U[-1, 1] kg."""
+    return Scenario(
+        f"platform-{height:.2f}",
+        replace(NOMINAL, added_mass=(-1.0, 1.0)),
+        ForceSchedule("centroid", (0.0, 100.0), period_steps=100, duration_steps=100),
+        tile_terrain(kinds=("platform",), levels=1, platform_height=(height, height)),
+        command=TEST_COMMAND,
+    )
+
+
 def _build() -> dict[str, Scenario]:
     scenarios = [
         Scenario("train", TRAIN, ForceSchedule("centroid", (0.0, 10.0), period_steps=5, duration_steps=5)),
@@ -92,6 +115,15 @@ def _build() -> dict[str, Scenario]:
         Scenario("uneven", terrain=UNEVEN, command=TEST_COMMAND),
         Scenario("side-impact", _TEST_RANGES, _SIDE_IMPACT, command=TEST_COMMAND),
         ROBUST,
+        TERRAIN,
+        Scenario(
+            "multi-terrain",
+            force=ForceSchedule("centroid", **_CONTINUOUS),
+            terrain=tile_terrain(kinds=_TERRAIN_KINDS, levels=10, start_levels=10),
+            command=TEST_COMMAND,
+        ),
+        _platform(0.40),
+        _platform(0.45),
     ]
     return {s.name: s for s in scenarios}
 

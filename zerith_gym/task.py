@@ -48,7 +48,8 @@ from zerith_gym.randomization import (
 )
 from zerith_gym.rewards import RewardInputs, reward_terms_for
 from zerith_gym.scenarios import Scenario
-from zerith_gym.terrain import Terrain, TerrainSpec
+from zerith_gym.terrain import Terrain
+from zerith_gym.terrain_levels import LevelRule, TerrainLevels
 
 EPISODE_STEPS = 1000
 """Default control steps in an episode (20 s): reaching them is a truncation."""
@@ -156,17 +157,20 @@ class ResetValues(NamedTuple):
     noise_uniforms: np.ndarray  # (n, STEP_DRAWS) the uniforms of the first observation's noise
 
 
-def reset_values(uniforms: np.ndarray, sc: ScenarioArrays, terrain: TerrainSpec) -> ResetValues:
-    """The start of new episodes from uniforms (n, RESET_DRAWS) in [0, 1), in the order of `_RESET`."""
+def reset_values(
+    uniforms: np.ndarray, sc: ScenarioArrays, spawn_xy: np.ndarray, spawn_jitter: float
+) -> ResetValues:
+    """The start of new episodes from uniforms (n, RESET_DRAWS) in [0, 1), in the order of `_RESET`, at
+    spawn points `spawn_xy` (n, 2) moved by up to `spawn_jitter` m along x and y."""
     xp = namespace(uniforms)
     u = {name: uniforms[:, part] for name, part in _RESET.items()}
     half_roll_pitch = uniform_in((-1.0, 1.0), u["roll_pitch"]) * sc.init_roll_pitch / 2
     (cr, cp), (sr, sp) = xp.cos(half_roll_pitch).T, xp.sin(half_roll_pitch).T
-    spawn = uniform_in((-1.0, 1.0), u["spawn"]) * terrain.spawn_jitter
+    spawn = uniform_in((-1.0, 1.0), u["spawn"]) * spawn_jitter
     joint_scale = uniform_in(sc.init_joint_scale, u["joint_scale"])
     qpos = xp.concatenate(
         [
-            np.asarray(terrain.spawn_xy) + spawn,
+            spawn_xy + spawn,
             xp.stack([xp.zeros_like(cr), cp * cr, cp * sr, sp * cr, -sp * sr], axis=1),
             robot.DEFAULT_JOINT_POS * joint_scale,
         ],
@@ -478,9 +482,12 @@ class ZerithTask:
         sensors: robot.Sensors,
         constants: TaskConstants,
         command: tuple[float, float, float] | None = None,
+        first_robot: int = 0,
     ) -> None:
         n = self.num_robots = num_robots
         self.constants = constants
+        self.tiles = TerrainLevels(constants.terrain.spec, np.arange(first_robot, first_robot + n))
+        """Each robot's tile of the terrain, and the terrain curriculum's rule (`set_level_rule`)."""
         self.episode_steps = constants.episode_steps
         self.sensors = sensors
         self.set_scenario(scenario, command)
@@ -520,7 +527,9 @@ class ZerithTask:
         u = np.empty((len(ids), RESET_DRAWS))
         for k, i in enumerate(ids.tolist()):
             self.rngs[i].random(out=u[k])
-        start = reset_values(u, self.arrays, self.constants.terrain.spec)
+        spec = self.constants.terrain.spec
+        start = reset_values(u, self.arrays, self.tiles.spawn_points(ids), spec.spawn_jitter)
+        self.tiles.started(ids, start.qpos[:, :2])
         self.domain_vector[ids] = start.domain_vector
         self.lags[ids] = start.lags
         self.command[ids] = start.command
@@ -531,6 +540,11 @@ class ZerithTask:
         self.joint_vel[ids] = 0.0
         self.force[ids] = 0.0
         return DomainParams.from_vector(start.domain_vector), start.qpos
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Move robots between terrain levels by `rule` when their episodes end (None: stop); ValueError
+        unless the terrain has tiles (`zerith_gym.terrain_levels`)."""
+        self.tiles.set_rule(rule)
 
     def set_command(self, ids: np.ndarray, command: np.ndarray) -> None:
         """Override the current command of robots `ids` (until their next scheduled resampling)."""
@@ -573,6 +587,7 @@ class ZerithTask:
         )
         self.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
         out = step_output(e, unstable, self.step_count, self.episode_steps, self.policy_obs, self.critic_obs)
+        self.tiles.record(readings.base_pos[:, :2], self.command, out.fall, out.terminated | out.truncated)
         self.policy_obs, self.critic_obs = out.policy_obs, out.critic_obs
         return out
 

@@ -46,6 +46,7 @@ from zerith_gym.options import (
 )
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
+from zerith_gym.terrain_levels import LevelRule
 from zerith_gym.workers import WorkerPool, default_workers
 
 SIMULATION_BACKENDS = ("cpu", "mjx")
@@ -113,6 +114,8 @@ class ZerithVecEnv(VecEnv):
         self._term_sums = np.zeros((num_envs, len(REWARD_NAMES)))
         self._start_time = time.time()
         self._reset_done = False
+        self.terrain_levels = np.zeros(num_envs, dtype=int)
+        """The terrain level (tile row) each robot walked on in the last step (0 off tile terrains)."""
 
     # ------------------------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
@@ -139,6 +142,7 @@ class ZerithVecEnv(VecEnv):
 
     def step_wait(self) -> VecEnvStepReturn:
         step = self.robots.step(self._actions)
+        self.terrain_levels = step.terrain_level
         out = step.out
         self._returns += out.reward
         self._lengths += 1
@@ -178,6 +182,11 @@ class ZerithVecEnv(VecEnv):
         scenario = resolve_scenario(scenario)
         self.robots.set_scenario(scenario)
         self.scenario = scenario
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Move robots between terrain levels by `rule` when their episodes end (None: stop); ValueError
+        unless the scenario's terrain has tiles (`zerith_gym.terrain_levels`, `TerrainCurriculum`)."""
+        self.robots.set_level_rule(rule)
 
     def close(self) -> None:
         """Stop the worker processes or physics threads, if any (models and data go with the object)."""

@@ -50,6 +50,7 @@ from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import StepOutput
+from zerith_gym.terrain_levels import LevelRule
 
 MIN_ROBOTS_PER_WORKER = 8
 """Below this many robots per slice the hand-over costs more than the parallel work gains."""
@@ -92,6 +93,7 @@ BATCH_STEP_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
     "policy_obs": (np.float32, (POLICY_SIZE,)),  # to act on next (after a reset where an episode ended)
     "critic_obs": (np.float32, (CRITIC_SIZE,)),
     "next_command": (np.float64, (3,)),
+    "terrain_level": (np.int64, ()),
 }
 """The same for the fields of `BatchStep` other than `out`."""
 _OUT = "out."
@@ -141,7 +143,8 @@ def _read_step(shared: dict[str, np.ndarray]) -> BatchStep:
 
 
 def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, int], message: bytes) -> bool:
-    """Carry out one message (step, reset, scenario, close) on the slice of robots [rows); False: closed."""
+    """Carry out one message (step, reset, scenario, level rule, close) on the slice of robots [rows);
+    False: closed."""
     start, stop = rows
     mine = slice(start, stop)
     if message == _STEP:
@@ -153,6 +156,9 @@ def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, 
         return False
     if command == "scenario":
         batch.set_scenario(payload)
+        return True
+    if command == "level rule":
+        batch.set_level_rule(payload)
         return True
     ids, seeds, commands = payload  # reset: robot indices of this slice, counted from 0
     batch.seed(seeds)
@@ -175,7 +181,7 @@ def _serve(
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle: it closes the pool
     try:
         shared = _views(block, num_robots)
-        batch = ZerithBatch(rows[1] - rows[0], options, physics_threads)
+        batch = ZerithBatch(rows[1] - rows[0], options, physics_threads, first_robot=rows[0])
     except BaseException:
         conn.send_bytes(pickle.dumps(traceback.format_exc()))
         return
@@ -260,6 +266,12 @@ class WorkerPool:
         message = pickle.dumps(("scenario", scenario))
         self._run(dict.fromkeys(range(len(self._rows)), message), "changing the scenario")
         self.scenario = scenario
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Every slice moves its robots between terrain levels by `rule` (`zerith_gym.terrain_levels`)."""
+        self._local.set_level_rule(rule)  # checks the rule against the terrain before the workers see it
+        message = pickle.dumps(("level rule", rule))
+        self._run(dict.fromkeys(range(1, len(self._rows)), message), "setting the terrain curriculum")
 
     @property
     def commands(self) -> np.ndarray:

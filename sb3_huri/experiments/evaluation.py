@@ -18,8 +18,9 @@ return quantiles, the risk parameter beta and the interquartile range): ``beta``
 every robot-step, and robot 0's trace, step by step, with the external force it felt (the paper's Fig. 5).
 
 ``PROTOCOL`` is the paper's evaluation (``DESIGN`` section 6): the six disturbance scenarios of its Table 1
-(survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), and
-walking on the plane, with risk traces on the plane, under sudden pushes and on uneven ground (its Fig. 5).
+(survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), the
+terrain tests of its appendix (Tables 8 and 9: survival) and walking on the plane, with risk traces on the
+plane, under sudden pushes and on uneven ground (its Fig. 5).
 """
 
 from __future__ import annotations
@@ -58,7 +59,10 @@ PLANE_CASE = f"nominal@{TEST_COMMAND[0]:g}"
 """Walking on the plane at the test command, no randomization and no force: the reference for the risk."""
 RISK_CASES = (PLANE_CASE, "sudden-centroid", "uneven")
 """Where the critic's value distribution and beta are traced (the paper's Fig. 5: plane, push, uneven)."""
-PROTOCOL = (PLANE_CASE, *TABLE1_SCENARIOS, *TRACKING_SCENARIOS)
+TERRAIN_SCENARIOS = ("multi-terrain", "platform-0.40", "platform-0.45")
+"""The paper's terrain tests: Table 9 (rough slopes and blocks, U[0, 100] N on the centroid) and Table 8
+(stepping down a 0.40 / 0.45 m platform under forces and a +-1 kg mass change)."""
+PROTOCOL = (PLANE_CASE, *TABLE1_SCENARIOS, *TRACKING_SCENARIOS, *TERRAIN_SCENARIOS)
 """Every case of the evaluation, in the order it runs."""
 
 

@@ -3,14 +3,15 @@
 From the HuRi paper (DESIGN.md section 6): Table 1, the success rate (episodes without a fall) of each
 method under continuous (U[0, 100] N) and sudden (U[150, 200] N) forces on the centroid, hands and feet,
 5 seeds x 10 runs each; the average training return of each method (its Fig. 3); and the risk the critic
-reads in its Fig. 5: interquartile range on uneven ground > under a push > walking on the plane. The paper
+reads in its Fig. 5: interquartile range on uneven ground > under a push > walking on the plane; and the
+success rates of its appendix on terrains (Tables 8 and 9). The paper
 gives no numbers for HuRi without IQR and HuRi with CVaR in Table 1; they are reported without a
 reference.
 """
 
 from __future__ import annotations
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, TERRAIN_SCENARIOS
 
 TABLE1: dict[str, dict[str, float]] = {
     method: dict(zip(TABLE1_SCENARIOS, rates, strict=True))
@@ -22,6 +23,16 @@ TABLE1: dict[str, dict[str, float]] = {
     }.items()
 }
 """Success rate per method and Table-1 scenario."""
+
+TERRAINS: dict[str, dict[str, float]] = {
+    "huri-baseline": {"multi-terrain": 0.2514, "platform-0.40": 0.6537, "platform-0.45": 0.3901},
+    "huri-cvar0.5": {"multi-terrain": 0.4978},
+    "huri-no-rnd": {"multi-terrain": 0.4604},
+    "huri": {"multi-terrain": 0.5776, "platform-0.40": 0.9273, "platform-0.45": 0.8055},
+}
+"""Success rate per method on the terrain tests: Table 9 (multi-terrain, methods trained on terrains) and
+Table 8 (platforms; baseline and HuRi only)."""
+assert all(set(rates) <= set(TERRAIN_SCENARIOS) for rates in TERRAINS.values())
 
 TRAINING_RETURN = {"huri": 90.86, "huri-no-rnd": 86.93, "huri-cvar0.5": 84.17, "huri-baseline": 83.28}
 """Average training return per method (the paper's reward scale, not ours: only the order compares)."""

@@ -20,6 +20,7 @@ from zerith_gym.options import (
 )
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
+from zerith_gym.terrain_levels import LevelRule
 
 _ROBOT = np.array([0])
 
@@ -72,7 +73,8 @@ class Zerith1Env(gym.Env):
     ## Info (every step)
     `fall`, `sim_unstable`, `lin_vel_error` (|v_xy - v_cmd|), `ang_vel_error` (|yaw rate - cmd|),
     `external_force` (N, world frame, on each body of the scenario's target group), `command`,
-    `reward_terms` (name -> weighted value); at an episode's end also `episode_terms`.
+    `reward_terms` (name -> weighted value), `terrain_level` (the tile row walked on: 0 unless the
+    scenario's terrain has tiles); at an episode's end also `episode_terms`.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": round(1.0 / robot.CONTROL_DT)}
@@ -129,6 +131,11 @@ class Zerith1Env(gym.Env):
         scenario = resolve_scenario(scenario)
         self.robots.set_scenario(scenario)
         self.scenario = scenario
+
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Move the robot between terrain levels by `rule` when its episodes end (None: stop); ValueError
+        unless the scenario's terrain has tiles (`zerith_gym.terrain_levels`, `TerrainCurriculum`)."""
+        self.robots.set_level_rule(rule)
 
     # ------------------------------------------------------------------------------------------------
     def render(self):

@@ -44,6 +44,7 @@ from zerith_gym.task import (
     task_constants,
 )
 from zerith_gym.terrain import Terrain
+from zerith_gym.terrain_levels import LevelRule, TerrainLevels
 
 
 class MjxState(NamedTuple):
@@ -85,6 +86,8 @@ class MjxBatch:
             resolve_reward_weights(options.reward_weights),
             int(options.episode_steps),
         )
+        tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots))  # fixed: no curriculum on MJX
+        self._spawn, self._levels = tiles.spawn_points(np.arange(num_robots)), tiles.levels
         self.set_scenario(self.scenario)
         self._reset = jax.jit(self._start)
         self._step = jax.jit(self._step_all)
@@ -99,6 +102,14 @@ class MjxBatch:
         self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
 
     # ------------------------------------------------- the robots contract (zerith_gym.contract.Robots)
+    def set_level_rule(self, rule: LevelRule | None) -> None:
+        """Not on MJX: its robots keep their starting tiles (ValueError unless `rule` is None)."""
+        if rule is not None:
+            raise ValueError(
+                "the MJX backend keeps each robot on its starting tile: a terrain curriculum needs the cpu "
+                "backend"
+            )
+
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:
         """Seed the next reset: the JAX key is drawn from the generator of the lowest robot index given."""
         if seeds:
@@ -147,7 +158,8 @@ class MjxBatch:
         """Fresh episodes of every robot, drawn from `key` (commands fixed where `overrides` is finite)."""
         n = self.num_robots
         draw, key = jax.random.split(key)
-        start = reset_values(jax.random.uniform(draw, (n, RESET_DRAWS)), sc, self.terrain.spec)
+        uniforms = jax.random.uniform(draw, (n, RESET_DRAWS))
+        start = reset_values(uniforms, sc, jnp.asarray(self._spawn, _real()), self.terrain.spec.spawn_jitter)
         command = jnp.where(jnp.isfinite(overrides), overrides, start.command)
         fields = domain_model_fields(self.physics.nominal, DomainParams.from_vector(start.domain_vector))
         data = jax.vmap(self.physics.reset)(fields, start.qpos)
@@ -235,7 +247,8 @@ class MjxBatch:
 
         # Every robot's reset is computed and selected where an episode ended, when one did.
         new = jax.lax.cond(ended.any(), restart_ended, lambda stepped: stepped, stepped)
-        step = BatchStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command)
+        level = jnp.asarray(self._levels)
+        step = BatchStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command, level)
         return new, step
 
 
