@@ -159,6 +159,19 @@ def test_rl_zoo_trains_the_robust_preset(tmp_path: Path) -> None:
         assert pickle.load(file).norm_obs_keys == ["policy"]
 
 
+@requires_hook
+def test_rl_zoo_trains_on_terrains_with_the_terrain_curriculum(tmp_path: Path) -> None:
+    """`rl_zoo3 train -conf hyperparams/huri_terrain.yml`: the terrain scenario and the level's log."""
+    conf = str(REPO / "hyperparams" / "huri_terrain.yml")
+    command = [*rl_zoo3_command(), "train", "--algo", "huri", "--env", "Zerith1-v0", "-conf", conf,
+               "-n", "256", "--eval-freq", "-1", "--seed", "0", "-f", "logs", "--num-threads", "1",
+               "-params", "n_envs:2", "n_steps:64"]  # fmt: skip
+    result = run(command, tmp_path)
+    folder = tmp_path / "logs" / "huri" / "Zerith1-v0_1"
+    assert "scenario: terrain" in (folder / "Zerith1-v0" / "config.yml").read_text()
+    assert "terrain/" in result.stdout and "max_level_share" in result.stdout  # TerrainCurriculum's log
+
+
 def test_wrapper_works_without_the_hook(tmp_path: Path) -> None:
     """``python -m sb3_huri.zoo`` registers HuRi by itself: run it with the start-up hook switched off."""
     without_hook = (

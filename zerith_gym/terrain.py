@@ -12,6 +12,14 @@ from zerith_gym.arrays import namespace
 from zerith_gym.tiles import TileGrid, tile_heights
 
 TERRAIN_KINDS = ("plane", "uneven", "tiles")
+HFIELD_SOLREF = (0.01, 1.0)
+"""Contact time constant and damping ratio of height fields (the plane keeps MuJoCo's (0.02, 1)).
+
+MuJoCo collides a height field as a union of triangular prisms. Where a 1-cm sole sphere sinks a few
+millimetres at a seam between two prisms, the neighbouring prism's side face gives a contact with a sideways
+normal, which trips a walking robot: the shipped HuRi agent walking at 0.5 m/s falls on a flat height field
+at step 91 and walks on the plane. Stiffer contacts (mixed with the soles' 0.02: 0.015) keep the soles
+shallower and cut those contacts by 7x (docs/zerith1.md, "Terrains")."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +141,7 @@ class Terrain:
             conaffinity=floor.conaffinity,
             condim=floor.condim,
             friction=floor.friction,
+            solref=list(HFIELD_SOLREF),
             material=material,
         )
 

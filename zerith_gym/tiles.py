@@ -157,7 +157,7 @@ def _discrete(
     """Random blocks 0.4-1.2 m wide, each raised or sunk by the step height or half of it."""
     h = grid.at_level(grid.step_height, level)
     heights = np.zeros_like(x)
-    blocks = round(0.4 * grid.tile_size**2)  # about a third of the tile covered, overlapping
+    blocks = round(0.4 * grid.tile_size**2)  # about a quarter of the tile covered, overlapping
     corners = rng.uniform(0.0, grid.tile_size, (blocks, 2))
     sides = rng.uniform(0.4, 1.2, (blocks, 2))
     levels = rng.choice(np.array([-1.0, -0.5, 0.5, 1.0]) * h, blocks)
