@@ -32,9 +32,9 @@ def test_each_info_reads_its_robot_from_the_step_arrays(stepped):
         assert info["TimeLimit.truncated"] is False and info.get("episode") is None
         assert set(info) == {
             "fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command",
-            "reward_terms", "TimeLimit.truncated",
+            "reward_terms", "terrain_level", "TimeLimit.truncated",
         }  # fmt: skip
-        assert len(dict(info)) == len(info) == 8
+        assert len(dict(info)) == len(info) == 9 and info["terrain_level"] == 0  # a plane: one level
         copied = info.copy()
         assert type(copied) is dict and copied.keys() == dict(info).keys()
 
@@ -47,7 +47,7 @@ def test_episode_ends_write_their_keys_and_keep_them(stepped):
         assert info["TimeLimit.truncated"] is True and info["episode"]["l"] == 3
         assert set(info["episode_terms"]) == set(REWARD_NAMES)
         assert info["terminal_observation"]["policy"].shape == (46,)
-        assert {"episode", "episode_terms", "terminal_observation"} <= set(info) and len(info) == 11
+        assert {"episode", "episode_terms", "terminal_observation"} <= set(info) and len(info) == 12
     info = infos[0]
     info["mine"] = 1
     assert infos[0]["mine"] == 1
