@@ -232,7 +232,7 @@ def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
     env.reset()
     seen = set()
     for _ in range(520):  # the feet's phases start at step 400
-        step_count = np.asarray(env.robots.state.step_count).copy()
+        step_count = np.asarray(env.robots.state.task.step_count).copy()
         _, _, dones, infos = env.step(np.zeros((2, 12)))
         applied = np.asarray(env.robots.state.data.xfrc_applied)[:, :, :3]
         for i, info in enumerate(infos):
@@ -259,14 +259,15 @@ def test_mjx_randomizes_like_the_cpu_backend():
         mjx.seed(seed)
         mjx.reset()
         state = mjx.robots.state
-        samples_mjx.append(np.column_stack([state.domain_vector, state.command, state.data.qpos[:, 7:]]))
+        task = state.task
+        samples_mjx.append(np.column_stack([task.domain_vector, task.command, state.data.qpos[:, 7:]]))
         # The model fields of each robot are those its domain parameters give.
         expected = domain_model_fields(
-            mjx.robots.physics.nominal, DomainParams.from_vector(np.asarray(state.domain_vector, float))
+            mjx.robots.physics.nominal, DomainParams.from_vector(np.asarray(task.domain_vector, float))
         )
         for name, values in expected.items():
             np.testing.assert_allclose(np.asarray(state.fields[name]), values, rtol=1e-5, atol=1e-6)
-    task = cpu.robots.task
+    task = cpu.robots.task.state
     joints = np.array([d.qpos[7:] for d in cpu.robots.sim.datas])
     samples_cpu = np.column_stack([task.domain_vector, task.command, joints])
     samples_mjx = np.concatenate(samples_mjx)

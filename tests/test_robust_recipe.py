@@ -82,7 +82,7 @@ def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
     env.reset()
     seen = set()
     for _ in range(520):  # the feet phases start at step 400
-        step_count = env.robots.task.step_count.copy()  # the episode step about to be simulated
+        step_count = env.robots.task.state.step_count.copy()  # the episode step about to be simulated
         _, _, _, infos = env.step(np.zeros((4, 12)))
         for i, info in enumerate(infos):
             target = list(FORCE_TARGETS)[table.target[step_count[i]]]

@@ -77,13 +77,13 @@ class ZerithBatch:
         domain, qpos = self.task.reset(ids)
         for i, command in (commands or {}).items():
             self.task.set_command(np.array([i]), command)
-        self.sim.reset(ids, domain, qpos, self.task.lags[ids])
+        self.sim.reset(ids, domain, qpos, self.task.state.lags[ids])
         return self.task.observe(ids, self.sim.sensordata[ids])
 
     @property
     def commands(self) -> np.ndarray:
         """The current command of every robot, (n, 3) (a live array: copy what you keep)."""
-        return self.task.command
+        return self.task.state.command
 
     def step(self, actions: np.ndarray, autoreset: bool = True) -> BatchStep:
         """One control step of every robot with checked actions (n, 12).
@@ -93,7 +93,7 @@ class ZerithBatch:
         """
         level = self.task.tiles.levels.copy()
         targets, drawn = self.task.before_physics(actions)
-        force, command = drawn.force.copy(), self.task.command.copy()  # the task's arrays change later
+        force, command = drawn.force.copy(), self.task.state.command.copy()  # the task's arrays change later
         kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
         unstable = self.sim.step(targets, force, drawn.force_target, kicks)
         out = self.task.after_physics(self.sim.sensordata, unstable)
@@ -102,7 +102,7 @@ class ZerithBatch:
         if len(ended):  # the reset writes into the task's arrays: keep the step's values
             policy, critic = policy.copy(), critic.copy()
             policy[ended], critic[ended] = self.reset(ended)
-        return BatchStep(out, force, command, policy, critic, self.task.command, level)
+        return BatchStep(out, force, command, policy, critic, self.task.state.command, level)
 
     def close(self) -> None:
         self.sim.close()

@@ -468,6 +468,41 @@ def step_output(
     )
 
 
+class TaskState(NamedTuple):
+    """The task state of n robots between control steps (leading axis n).
+
+    One record for both backends: the CPU task (`ZerithTask.state`) keeps numpy arrays and updates them in
+    place; the MJX backend keeps JAX arrays inside its `MjxState` and replaces them every step.
+    """
+
+    step_count: np.ndarray  # (n,) int, control steps into the episode
+    gait_step: np.ndarray  # (n,) int, control steps into the gait cycle
+    command: np.ndarray  # (n, 3)
+    actions: np.ndarray  # (n, 3, 12) a_t, a_{t-1}, a_{t-2}
+    joint_vel: np.ndarray  # (n, 12) at the last observation
+    force: np.ndarray  # (n, 3) on each body of the force target
+    domain_vector: np.ndarray  # (n, DOMAIN_VECTOR_SIZE)
+    lags: np.ndarray  # (n, DECIMATION) int, control steps of delay of each physics sub-step
+    policy_obs: np.ndarray  # (n, POLICY_SIZE) float32, the last observation
+    critic_obs: np.ndarray  # (n, CRITIC_SIZE) float32
+
+    @staticmethod
+    def zeros(n: int) -> TaskState:
+        """The state of n robots before their first reset (numpy)."""
+        return TaskState(
+            step_count=np.zeros(n, dtype=int),
+            gait_step=np.zeros(n, dtype=int),
+            command=np.zeros((n, 3)),
+            actions=np.zeros((n, 3, robot.NUM_JOINTS)),
+            joint_vel=np.zeros((n, robot.NUM_JOINTS)),
+            force=np.zeros((n, 3)),
+            domain_vector=np.zeros((n, DOMAIN_VECTOR_SIZE)),
+            lags=np.zeros((n, robot.DECIMATION), dtype=int),
+            policy_obs=np.zeros((n, POLICY_SIZE), dtype=np.float32),
+            critic_obs=np.zeros((n, CRITIC_SIZE), dtype=np.float32),
+        )
+
+
 class ZerithTask:
     """Task state of `num_robots` Zerith-1 robots in one scenario, on numpy (the CPU backend).
 
@@ -493,16 +528,8 @@ class ZerithTask:
         self.set_scenario(scenario, command)
 
         self.rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
-        self.step_count = np.zeros(n, dtype=int)
-        self.gait_step = np.zeros(n, dtype=int)  # control steps into the gait cycle
-        self.command = np.zeros((n, 3))
-        self.actions = np.zeros((n, 3, robot.NUM_JOINTS))  # a_t, a_{t-1}, a_{t-2}
-        self.joint_vel = np.zeros((n, robot.NUM_JOINTS))
-        self.force = np.zeros((n, 3))
-        self.domain_vector = np.zeros((n, DOMAIN_VECTOR_SIZE))
-        self.lags = np.zeros((n, robot.DECIMATION), dtype=int)
-        self.policy_obs = np.zeros((n, POLICY_SIZE), dtype=np.float32)
-        self.critic_obs = np.zeros((n, CRITIC_SIZE), dtype=np.float32)
+        self.state = TaskState.zeros(n)
+        """The robots' task state (numpy arrays, updated in place or replaced by the step)."""
         self._uniforms = np.zeros((n, STEP_DRAWS))
 
     def set_scenario(self, scenario: Scenario, command: tuple[float, float, float] | None = None) -> None:
@@ -530,15 +557,13 @@ class ZerithTask:
         spec = self.constants.terrain.spec
         start = reset_values(u, self.arrays, self.tiles.spawn_points(ids), spec.spawn_jitter)
         self.tiles.started(ids, start.qpos[:, :2])
-        self.domain_vector[ids] = start.domain_vector
-        self.lags[ids] = start.lags
-        self.command[ids] = start.command
+        state = self.state
+        state.domain_vector[ids] = start.domain_vector
+        state.lags[ids] = start.lags
+        state.command[ids] = start.command
         self._uniforms[ids] = start.noise_uniforms  # the first observation's noise
-        self.step_count[ids] = 0
-        self.gait_step[ids] = 0
-        self.actions[ids] = 0.0
-        self.joint_vel[ids] = 0.0
-        self.force[ids] = 0.0
+        for started in (state.step_count, state.gait_step, state.actions, state.joint_vel, state.force):
+            started[ids] = 0
         return DomainParams.from_vector(start.domain_vector), start.qpos
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
@@ -548,7 +573,7 @@ class ZerithTask:
 
     def set_command(self, ids: np.ndarray, command: np.ndarray) -> None:
         """Override the current command of robots `ids` (until their next scheduled resampling)."""
-        self.command[ids] = command
+        self.state.command[ids] = command
 
     # ------------------------------------------------------------------------------------- one step
     def before_physics(self, actions: np.ndarray) -> tuple[np.ndarray, Disturbances]:
@@ -557,59 +582,66 @@ class ZerithTask:
         Returns the joint targets of the last three actions (n, 3, 12) (index = control steps of lag) and
         this step's disturbances: the external force (n, 3) and its target (n,), and base velocity kicks.
         """
-        self.actions[:, 1:] = self.actions[:, :-1]
-        self.actions[:, 0] = actions
+        state = self.state
+        state.actions[:, 1:] = state.actions[:, :-1]
+        state.actions[:, 0] = actions
         u = self._uniforms
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
-        drawn = step_disturbances(u, self.step_count, self.force, self.command, self.arrays)
-        self.force, self.command = drawn.force, drawn.command
-        return action_targets(self.actions), drawn
+        drawn = step_disturbances(u, state.step_count, state.force, state.command, self.arrays)
+        self.state = state._replace(force=drawn.force, command=drawn.command)
+        return action_targets(state.actions), drawn
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
-        self.step_count += 1
-        self.gait_step = (self.gait_step + 1) % len(GAIT_TABLE)
+        state = self.state
+        state.step_count[:] += 1
+        state.gait_step[:] = (state.gait_step + 1) % len(GAIT_TABLE)
         if np.logical_or.reduce(unstable):
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         readings = self.sensors.read(sensordata)
         noise = observation_noise(self._uniforms, self.arrays) if self._noisy else None
         e = judge_step(
             readings,
-            self.gait_step,
-            self.command,
-            self.actions,
-            self.joint_vel,
-            self.force,
-            self.domain_vector,
+            state.gait_step,
+            state.command,
+            state.actions,
+            state.joint_vel,
+            state.force,
+            state.domain_vector,
             noise,
             self.constants,
         )
-        self.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
-        out = step_output(e, unstable, self.step_count, self.episode_steps, self.policy_obs, self.critic_obs)
-        self.tiles.record(readings.base_pos[:, :2], self.command, out.fall, out.terminated | out.truncated)
-        self.policy_obs, self.critic_obs = out.policy_obs, out.critic_obs
+        state.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
+        out = step_output(
+            e, unstable, state.step_count, self.episode_steps, state.policy_obs, state.critic_obs
+        )
+        self.tiles.record(readings.base_pos[:, :2], state.command, out.fall, out.terminated | out.truncated)
+        self.state = state._replace(policy_obs=out.policy_obs, critic_obs=out.critic_obs)
         return out
 
     def observe(self, ids: np.ndarray, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Policy and critic observations of robots `ids` right after their reset, from their sensors."""
         readings = self.sensors.read(sensordata)
-        clock = GAIT_TABLE[self.gait_step[ids]]
+        state = self.state
+        clock = GAIT_TABLE[state.gait_step[ids]]
         noise = observation_noise(self._uniforms[ids], self.arrays) if self._noisy else None
         policy, critic = observations(
             readings,
             ground(readings, self.constants.terrain),
             clock,
-            self.command[ids],
-            self.actions[ids, 0],
-            self.force[ids],
-            self.domain_vector[ids],
+            state.command[ids],
+            state.actions[ids, 0],
+            state.force[ids],
+            state.domain_vector[ids],
             noise,
         )
-        self.joint_vel[ids] = readings.joint_vel
+        state.joint_vel[ids] = readings.joint_vel
         # New arrays: those of the last step were handed out (terminal observations of these robots).
-        self.policy_obs, self.critic_obs = self.policy_obs.copy(), self.critic_obs.copy()
-        self.policy_obs[ids], self.critic_obs[ids] = policy, critic
+        state = self.state = state._replace(
+            policy_obs=state.policy_obs.copy(), critic_obs=state.critic_obs.copy()
+        )
+        state.policy_obs[ids], state.critic_obs[ids] = policy, critic
         return policy, critic
 
 

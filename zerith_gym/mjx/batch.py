@@ -32,6 +32,7 @@ from zerith_gym.task import (
     STEP_DRAWS,
     ScenarioArrays,
     TaskConstants,
+    TaskState,
     action_targets,
     ground,
     judge_step,
@@ -53,16 +54,7 @@ class MjxState(NamedTuple):
     data: mjx.Data
     fields: dict[str, jax.Array]  # the randomized model fields of each robot
     key: jax.Array
-    step_count: jax.Array  # (n,) control steps into the episode
-    gait_step: jax.Array  # (n,) control steps into the gait cycle
-    command: jax.Array  # (n, 3)
-    actions: jax.Array  # (n, 3, 12) a_t, a_{t-1}, a_{t-2}
-    joint_vel: jax.Array  # (n, 12) at the last observation
-    force: jax.Array  # (n, 3)
-    domain_vector: jax.Array  # (n, DOMAIN_VECTOR_SIZE)
-    lags: jax.Array  # (n, DECIMATION)
-    policy_obs: jax.Array  # (n, POLICY_SIZE)
-    critic_obs: jax.Array  # (n, CRITIC_SIZE)
+    task: TaskState  # the CPU task's record, of JAX arrays
 
 
 class MjxBatch:
@@ -130,14 +122,14 @@ class MjxBatch:
         seed = self._seed if self._seed is not None else int(np.random.default_rng().integers(2**63))
         self._seed = None
         self.state = self._reset(jax.random.key(seed), self.arrays, jnp.asarray(overrides, _real()))
-        return np.asarray(self.state.policy_obs), np.asarray(self.state.critic_obs)
+        return np.asarray(self.state.task.policy_obs), np.asarray(self.state.task.critic_obs)
 
     @property
     def commands(self) -> np.ndarray:
         """The current command of every robot, (n, 3)."""
         if self.state is None:
             raise RuntimeError("reset the robots first")
-        return np.asarray(self.state.command, dtype=float)
+        return np.asarray(self.state.task.command, dtype=float)
 
     def step(self, actions: np.ndarray) -> BatchStep:
         """One control step of every robot with checked actions (n, 12) in [-1, 1]; robots whose episode
@@ -176,10 +168,7 @@ class MjxBatch:
             start.domain_vector,
             observation_noise(start.noise_uniforms, sc),
         )
-        return MjxState(
-            data=data,
-            fields=fields,
-            key=key,
+        task = TaskState(
             step_count=jnp.zeros(n, jnp.int32),
             gait_step=jnp.zeros(n, jnp.int32),
             command=command,
@@ -191,53 +180,56 @@ class MjxBatch:
             policy_obs=policy,
             critic_obs=critic,
         )
+        return MjxState(data=data, fields=fields, key=key, task=task)
 
     def _step_all(
         self, state: MjxState, actions: jax.Array, sc: ScenarioArrays
     ) -> tuple[MjxState, BatchStep]:
-        n = self.num_robots
+        n, task = self.num_robots, state.task
         key, draw, restart = jax.random.split(state.key, 3)
         u = jax.random.uniform(draw, (n, STEP_DRAWS))
-        history = jnp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
-        drawn = step_disturbances(u, state.step_count, state.force, state.command, sc)
+        history = jnp.concatenate([actions[:, None], task.actions[:, :2]], axis=1)
+        drawn = step_disturbances(u, task.step_count, task.force, task.command, sc)
         data, unstable = jax.vmap(self.physics.control_step)(
             state.fields,
             state.data,
             action_targets(history),
-            state.lags,
+            task.lags,
             drawn.force,
             drawn.force_target,
             drawn.kicks,
         )
         sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
         readings = self.sensors.read(sensordata)
-        step_count = state.step_count + 1
-        gait_step = (state.gait_step + 1) % len(GAIT_TABLE)
+        step_count = task.step_count + 1
+        gait_step = (task.gait_step + 1) % len(GAIT_TABLE)
         e = judge_step(
             readings,
             gait_step,
             drawn.command,
             history,
-            state.joint_vel,
+            task.joint_vel,
             drawn.force,
-            state.domain_vector,
+            task.domain_vector,
             observation_noise(u, sc),
             self.constants,
         )
         out = step_output(
-            e, unstable, step_count, self.constants.episode_steps, state.policy_obs, state.critic_obs
+            e, unstable, step_count, self.constants.episode_steps, task.policy_obs, task.critic_obs
         )
         stepped = state._replace(
             data=data,
             key=key,
-            step_count=step_count,
-            gait_step=gait_step,
-            command=drawn.command,
-            actions=history,
-            joint_vel=readings.joint_vel,
-            force=drawn.force,
-            policy_obs=out.policy_obs,
-            critic_obs=out.critic_obs,
+            task=task._replace(
+                step_count=step_count,
+                gait_step=gait_step,
+                command=drawn.command,
+                actions=history,
+                joint_vel=readings.joint_vel,
+                force=drawn.force,
+                policy_obs=out.policy_obs,
+                critic_obs=out.critic_obs,
+            ),
         )
         ended = out.terminated | out.truncated
 
@@ -248,7 +240,10 @@ class MjxBatch:
         # Every robot's reset is computed and selected where an episode ended, when one did.
         new = jax.lax.cond(ended.any(), restart_ended, lambda stepped: stepped, stepped)
         level = jnp.asarray(self._levels)
-        step = BatchStep(out, drawn.force, drawn.command, new.policy_obs, new.critic_obs, new.command, level)
+        after = new.task  # the next observations and commands (a new episode's where one ended)
+        step = BatchStep(
+            out, drawn.force, drawn.command, after.policy_obs, after.critic_obs, after.command, level
+        )
         return new, step
 
 
