@@ -131,15 +131,33 @@ def test_levels_move_only_for_ended_episodes_and_only_with_a_rule() -> None:
     tiles.started(ids, tiles.spawn_points(ids))
     far = tiles.spawn + np.array([5.0, 0.0])
     for _ in range(10):
-        tiles.record(far, np.tile([1.0, 0.0, 0.0], (8, 1)), np.zeros(8, bool), np.zeros(8, bool))
+        tiles.record(
+            far, np.tile([1.0, 0.0, 0.0], (8, 1)), np.zeros(8, bool), np.zeros(8, bool), np.zeros(8, bool)
+        )
     tiles.spawn_points(ids)  # no rule yet
     np.testing.assert_array_equal(tiles.levels, start)
     tiles.set_rule(LevelRule())
     tiles.started(ids, tiles.spawn)
-    tiles.record(tiles.spawn + np.array([5.0, 0.0]), np.zeros((8, 3)), np.zeros(8, bool), np.arange(8) < 4)
+    ended, steady = np.arange(8) < 4, np.zeros(8, bool)
+    tiles.record(tiles.spawn + np.array([5.0, 0.0]), np.zeros((8, 3)), np.zeros(8, bool), ended, steady)
     centres = tiles.spawn_points(ids)
     np.testing.assert_array_equal(tiles.levels, np.minimum(start + (ids < 4), 4))  # 5 m > half a tile
     np.testing.assert_allclose(centres, spec.tiles.tile_centres(tiles.levels, tiles.columns))
+
+
+def test_an_episode_cut_by_a_diverging_simulation_moves_no_level() -> None:
+    spec = tile_terrain(levels=5, start_levels=5)
+    tiles = TerrainLevels(spec, np.arange(4))
+    ids = np.arange(4)
+    tiles.set_rule(LevelRule())
+    tiles.started(ids, tiles.spawn_points(ids))
+    start = tiles.levels.copy()
+    walked = tiles.spawn + np.array([5.0, 0.0])  # far enough to move up
+    unstable = np.array([False, True, False, True])
+    sensed = np.where(unstable[:, None], 0.0, walked)  # a diverged robot's sensors read zeros
+    tiles.record(sensed, np.zeros((4, 3)), np.zeros(4, bool), np.ones(4, bool), unstable)
+    tiles.spawn_points(ids)
+    np.testing.assert_array_equal(tiles.levels, np.minimum(start + ~unstable, 4))
 
 
 @pytest.mark.parametrize("workers", [0, 1])
@@ -169,6 +187,16 @@ def test_terrain_curriculum_trains_and_logs_the_level(tmp_path) -> None:
     env.close()
 
 
+def test_terrain_curriculum_warns_when_every_env_is_robot_0() -> None:
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env as sb3_vec_env
+
+    env = sb3_vec_env("Zerith1-v0", n_envs=2, env_kwargs={"scenario": "terrain", "obs_mode": "policy"})
+    model = PPO("MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1)
+    with pytest.warns(UserWarning, match="same tile"):
+        model.learn(32, callback=TerrainCurriculum())
+
+
 # --------------------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     ("make", "message"),
@@ -179,6 +207,8 @@ def test_terrain_curriculum_trains_and_logs_the_level(tmp_path) -> None:
         (lambda: TileGrid(tile_size=2.0), "tile_size"),
         (lambda: TileGrid(slope=(0.3, 0.1)), "slope must be a range"),
         (lambda: TerrainSpec(kind="tiles"), "needs a TileGrid"),
+        (lambda: tile_terrain(tile_size=8.05), "whole number of cells"),
+        (lambda: tile_terrain(border=0.25), "whole number of cells"),
         (lambda: TerrainSpec(kind="plane", tiles=TileGrid()), "needs a TileGrid"),
         (lambda: LevelRule(demote_fraction=1.5), "demote_fraction"),
         (lambda: LevelRule(promote_distance=0.0), "promote_distance"),

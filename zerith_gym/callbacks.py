@@ -32,6 +32,7 @@ and on terrains (`env_kwargs: {scenario: terrain}`):
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import torch as th
@@ -201,6 +202,13 @@ class TerrainCurriculum(BaseCallback):
     def _on_training_start(self) -> None:
         self._set_rule(self.rule)
         self._native = hasattr(self.training_env.unwrapped, "terrain_levels")  # ZerithVecEnv keeps them
+        if not self._native and self.training_env.num_envs > 1:
+            warnings.warn(
+                "TerrainCurriculum: every Zerith1Env of this VecEnv is robot 0 and starts on the same tile "
+                "(the first kind); make the env with zerith_gym.make_vec_env (RL Zoo does) to spread the "
+                "robots over the kinds and start levels",
+                stacklevel=2,
+            )
 
     def _on_training_end(self) -> None:
         self._set_rule(None)

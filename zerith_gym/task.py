@@ -616,7 +616,8 @@ class ZerithTask:
         out = step_output(
             e, unstable, state.step_count, self.episode_steps, state.policy_obs, state.critic_obs
         )
-        self.tiles.record(readings.base_pos[:, :2], state.command, out.fall, out.terminated | out.truncated)
+        ended = out.terminated | out.truncated
+        self.tiles.record(readings.base_pos[:, :2], state.command, out.fall, ended, unstable)
         self.state = state._replace(policy_obs=out.policy_obs, critic_obs=out.critic_obs)
         return out
 

@@ -49,6 +49,14 @@ class TerrainSpec:
             raise ValueError('a "tiles" terrain needs a TileGrid as `tiles`, and only it has one')
         if not self.resolution > 0 or self.spawn_jitter < 0:
             raise ValueError("the terrain's resolution must be > 0 and its spawn_jitter >= 0")
+        if self.tiles is not None:
+            for name in ("tile_size", "border"):
+                cells = getattr(self.tiles, name) / self.resolution
+                if abs(cells - round(cells)) > 1e-9:
+                    raise ValueError(
+                        f"the tiles' {name} ({getattr(self.tiles, name)} m) must be a whole number of cells "
+                        f"of the terrain's resolution ({self.resolution} m), so that tiles start on vertices"
+                    )
 
     @property
     def num_levels(self) -> int:
@@ -155,8 +163,8 @@ class Terrain:
             return xp.zeros(xy.shape[:-1])
         rows, cols = self.heights.shape
         (half_x, half_y), last_col, last_row = self.half_extent, cols - 1, rows - 1
-        u = xp.clip((xy[..., 0] + half_x) * (last_col / (2 * half_x)), 0.0, last_col)
-        v = xp.clip((xy[..., 1] + half_y) * (last_row / (2 * half_y)), 0.0, last_row)
+        u = xp.clip((xy[..., 0] + half_x) / (2 * half_x / last_col), 0.0, last_col)  # / the vertex spacing
+        v = xp.clip((xy[..., 1] + half_y) / (2 * half_y / last_row), 0.0, last_row)
         c0 = xp.minimum(u.astype(int), last_col - 1)
         r0 = xp.minimum(v.astype(int), last_row - 1)
         fu, fv = u - c0, v - r0

@@ -8,7 +8,8 @@ each robot whose episode ended is moved before its next start, as legged-robot c
 - up a level if it walked at least `promote_distance` from its spawn point without falling;
 - down a level if it fell, or walked less than `demote_fraction` of the distance its commands asked for.
 
-Levels stay within [0, levels - 1]. Other terrains have one tile: every robot at level 0 of column 0.
+Levels stay within [0, levels - 1]. An episode cut by a diverging simulation moves no level (its robot's
+position is unknown). Other terrains have one tile: every robot at level 0 of column 0.
 """
 
 from __future__ import annotations
@@ -73,6 +74,7 @@ class TerrainLevels:
         self.commanded = np.zeros(n)
         self.fell = np.zeros(n, dtype=bool)
         self.ended = np.zeros(n, dtype=bool)
+        self.unstable = np.zeros(n, dtype=bool)
 
     def set_rule(self, rule: LevelRule | None) -> None:
         """Move robots between levels by `rule` from their next start on (None: stop moving them)."""
@@ -88,7 +90,7 @@ class TerrainLevels:
         tiles, where their next episodes start."""
         grid = self.spec.tiles
         if self.rule is not None and grid is not None:
-            done = ids[self.ended[ids]]
+            done = ids[self.ended[ids] & ~self.unstable[ids]]
             walked = np.linalg.norm(self.position[done] - self.spawn[done], axis=1)
             promote = self.rule.promote_distance
             self.levels[done] = next_levels(
@@ -102,7 +104,7 @@ class TerrainLevels:
             )
         points = self.spec.spawn_points(self.levels[ids], self.columns[ids])
         self.commanded[ids] = 0.0
-        self.fell[ids] = self.ended[ids] = False
+        self.fell[ids] = self.ended[ids] = self.unstable[ids] = False
         return points
 
     def started(self, ids: np.ndarray, spawn: np.ndarray) -> None:
@@ -110,9 +112,18 @@ class TerrainLevels:
         self.spawn[ids] = spawn
         self.position[ids] = spawn
 
-    def record(self, base_xy: np.ndarray, command: np.ndarray, fell: np.ndarray, ended: np.ndarray) -> None:
-        """After a control step: every robot's base xy (n, 2), command (n, 3) and episode end (n,)."""
-        self.position[:] = base_xy
+    def record(
+        self,
+        base_xy: np.ndarray,
+        command: np.ndarray,
+        fell: np.ndarray,
+        ended: np.ndarray,
+        unstable: np.ndarray,
+    ) -> None:
+        """After a control step: every robot's base xy (n, 2), command (n, 3), fall, episode end and diverged
+        simulation (n,) each; a diverged robot's position is not read (its sensors were zeroed)."""
+        self.position[~unstable] = base_xy[~unstable]
+        self.unstable |= unstable
         self.commanded += np.hypot(command[:, 0], command[:, 1]) * robot.CONTROL_DT
         self.fell |= fell
         self.ended |= ended

@@ -2,7 +2,8 @@
 
 Legged-robot trainers lay their terrains out this way so that a curriculum can move each robot to a
 harder or easier tile by changing where it starts (`zerith_gym.terrain_levels`). Every tile is built around
-a flat spawn platform at its centre and meets its neighbours at height 0 along its edges, so a robot that
+a spawn square at its centre (flat but for the slopes' bumps) and meets its neighbours at height 0 along its
+edges, so a robot that
 walks off its tile steps onto the next one instead of off a cliff. The kinds:
 
 - `slope_up`: an inverted pyramid, the robot starts at the bottom and walks up a rough slope whichever way
@@ -38,8 +39,8 @@ class TileGrid:
     levels: int = 10
     tile_size: float = 8.0
     """Side (m) of a tile."""
-    border: float = 8.0
-    """Flat ground (m) around the grid, so that robots on the outer tiles stay on the terrain."""
+    border: float = 20.0
+    """Flat ground (m) around the grid, so that robots on the outer tiles stay on the terrain for 20 s."""
     slope: tuple[float, float] = (0.0, 0.3)
     """Gradient (rise over run) of `slope_up` and `slope_down` (0.3: 17 degrees)."""
     roughness: float = 0.02
