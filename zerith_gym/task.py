@@ -503,6 +503,56 @@ class TaskState(NamedTuple):
         )
 
 
+def begin_step(
+    state: TaskState, actions: np.ndarray, uniforms: np.ndarray, sc: ScenarioArrays
+) -> tuple[TaskState, Disturbances, np.ndarray]:
+    """The first half of a control step, before physics, for both backends.
+
+    From checked actions (n, 12) and the step's uniforms (n, STEP_DRAWS): the state with the new action
+    history, force and command; the step's disturbances; the joint targets (n, 3, 12) of the last three
+    actions (index = control steps of lag).
+    """
+    xp = namespace(actions, state.actions)
+    history = xp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
+    drawn = step_disturbances(uniforms, state.step_count, state.force, state.command, sc)
+    state = state._replace(actions=history, force=drawn.force, command=drawn.command)
+    return state, drawn, action_targets(history)
+
+
+def end_step(
+    state: TaskState,
+    readings: robot.Sensors,
+    unstable: np.ndarray,
+    noise: np.ndarray | None,
+    constants: TaskConstants,
+) -> tuple[TaskState, StepOutput]:
+    """The second half of a control step, after physics, for both backends: the state one step on and the
+    step's outcome, from the sensor readings (zeros where `unstable`) and the observation noise."""
+    xp = namespace(state.step_count)
+    step_count = state.step_count + 1
+    gait_step = (state.gait_step + 1) % len(GAIT_TABLE)
+    e = judge_step(
+        readings,
+        gait_step,
+        state.command,
+        state.actions,
+        state.joint_vel,
+        state.force,
+        state.domain_vector,
+        noise,
+        constants,
+    )
+    out = step_output(e, unstable, step_count, constants.episode_steps, state.policy_obs, state.critic_obs)
+    state = state._replace(
+        step_count=step_count,
+        gait_step=gait_step,
+        joint_vel=xp.array(readings.joint_vel),  # a copy: the readings may view the simulator's buffer
+        policy_obs=out.policy_obs,
+        critic_obs=out.critic_obs,
+    )
+    return state, out
+
+
 class ZerithTask:
     """Task state of `num_robots` Zerith-1 robots in one scenario, on numpy (the CPU backend).
 
@@ -582,43 +632,21 @@ class ZerithTask:
         Returns the joint targets of the last three actions (n, 3, 12) (index = control steps of lag) and
         this step's disturbances: the external force (n, 3) and its target (n,), and base velocity kicks.
         """
-        state = self.state
-        state.actions[:, 1:] = state.actions[:, :-1]
-        state.actions[:, 0] = actions
         u = self._uniforms
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
-        drawn = step_disturbances(u, state.step_count, state.force, state.command, self.arrays)
-        self.state = state._replace(force=drawn.force, command=drawn.command)
-        return action_targets(state.actions), drawn
+        self.state, drawn, targets = begin_step(self.state, actions, u, self.arrays)
+        return targets, drawn
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
-        state = self.state
-        state.step_count[:] += 1
-        state.gait_step[:] = (state.gait_step + 1) % len(GAIT_TABLE)
         if np.logical_or.reduce(unstable):
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         readings = self.sensors.read(sensordata)
         noise = observation_noise(self._uniforms, self.arrays) if self._noisy else None
-        e = judge_step(
-            readings,
-            state.gait_step,
-            state.command,
-            state.actions,
-            state.joint_vel,
-            state.force,
-            state.domain_vector,
-            noise,
-            self.constants,
-        )
-        state.joint_vel[:] = readings.joint_vel  # a copy: the readings view the simulator's buffer
-        out = step_output(
-            e, unstable, state.step_count, self.episode_steps, state.policy_obs, state.critic_obs
-        )
+        self.state, out = end_step(self.state, readings, unstable, noise, self.constants)
         ended = out.terminated | out.truncated
-        self.tiles.record(readings.base_pos[:, :2], state.command, out.fall, ended, unstable)
-        self.state = state._replace(policy_obs=out.policy_obs, critic_obs=out.critic_obs)
+        self.tiles.record(readings.base_pos[:, :2], self.state.command, out.fall, ended, unstable)
         return out
 
     def observe(self, ids: np.ndarray, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

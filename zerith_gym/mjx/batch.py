@@ -1,7 +1,7 @@
 """n Zerith-1 robots on MJX: the task state as a JAX pytree, and jitted reset and step functions.
 
-The task is the CPU backend's: `reset_values`, `step_disturbances`, `action_targets`, `judge_step`,
-`step_output` and `observations` from `zerith_gym.task`, the domain fields from
+The task is the CPU backend's: `reset_values`, `begin_step`, `end_step` and `observations` from
+`zerith_gym.task`, on the same `TaskState` record, the domain fields from
 `zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
 needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
 key split every step (not one numpy generator per robot), and robots whose episode ended are reset
@@ -33,15 +33,13 @@ from zerith_gym.task import (
     ScenarioArrays,
     TaskConstants,
     TaskState,
-    action_targets,
+    begin_step,
+    end_step,
     ground,
-    judge_step,
     observation_noise,
     observations,
     reset_values,
     scenario_arrays,
-    step_disturbances,
-    step_output,
     task_constants,
 )
 from zerith_gym.terrain import Terrain
@@ -185,52 +183,17 @@ class MjxBatch:
     def _step_all(
         self, state: MjxState, actions: jax.Array, sc: ScenarioArrays
     ) -> tuple[MjxState, BatchStep]:
-        n, task = self.num_robots, state.task
+        n = self.num_robots
         key, draw, restart = jax.random.split(state.key, 3)
         u = jax.random.uniform(draw, (n, STEP_DRAWS))
-        history = jnp.concatenate([actions[:, None], task.actions[:, :2]], axis=1)
-        drawn = step_disturbances(u, task.step_count, task.force, task.command, sc)
+        task, drawn, targets = begin_step(state.task, actions, u, sc)
         data, unstable = jax.vmap(self.physics.control_step)(
-            state.fields,
-            state.data,
-            action_targets(history),
-            task.lags,
-            drawn.force,
-            drawn.force_target,
-            drawn.kicks,
+            state.fields, state.data, targets, task.lags, drawn.force, drawn.force_target, drawn.kicks
         )
         sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
         readings = self.sensors.read(sensordata)
-        step_count = task.step_count + 1
-        gait_step = (task.gait_step + 1) % len(GAIT_TABLE)
-        e = judge_step(
-            readings,
-            gait_step,
-            drawn.command,
-            history,
-            task.joint_vel,
-            drawn.force,
-            task.domain_vector,
-            observation_noise(u, sc),
-            self.constants,
-        )
-        out = step_output(
-            e, unstable, step_count, self.constants.episode_steps, task.policy_obs, task.critic_obs
-        )
-        stepped = state._replace(
-            data=data,
-            key=key,
-            task=task._replace(
-                step_count=step_count,
-                gait_step=gait_step,
-                command=drawn.command,
-                actions=history,
-                joint_vel=readings.joint_vel,
-                force=drawn.force,
-                policy_obs=out.policy_obs,
-                critic_obs=out.critic_obs,
-            ),
-        )
+        task, out = end_step(task, readings, unstable, observation_noise(u, sc), self.constants)
+        stepped = state._replace(data=data, key=key, task=task)
         ended = out.terminated | out.truncated
 
         def restart_ended(stepped: MjxState) -> MjxState:
