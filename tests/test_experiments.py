@@ -240,7 +240,8 @@ def test_pruning_finishes_a_checkpoint_half_deleted_by_a_kill(tmp_path: Path) ->
     (folder / "checkpoints").mkdir(parents=True)
     names = ["vecnormalize_512.pkl", "model_1024.zip", "vecnormalize_1024.pkl", "model_1536.zip"]
     names += ["vecnormalize_1536.pkl", "model_2048.zip", "vecnormalize_2048.pkl"]
-    for name in names:  # model_512.zip is gone: the kill came between the checkpoint's two files
+    names += [".model_2560.zip.tmp"]  # a save cut short by a kill
+    for name in names:  # model_512.zip is gone: a kill came between the checkpoint's two files
         (folder / "checkpoints" / name).write_bytes(b"x")
     prune_checkpoints(folder, keep=2048)
     left = sorted(p.name for p in (folder / "checkpoints").iterdir())

@@ -64,8 +64,11 @@ def prune_checkpoints(folder: Path, keep: int) -> None:
     """Delete all but the ``KEEP_CHECKPOINTS`` newest checkpoints (``keep`` steps is the newest).
 
     Steps are gathered from models and normalizers alike, so a half-deleted checkpoint (a kill between
-    its two files) is finished off by the next prune instead of being left behind.
+    its two files) is finished off by the next prune instead of being left behind; so are the temporary
+    files of a save that a kill interrupted (the run's only writer is the caller, which is not saving now).
     """
+    for stale in (folder / CHECKPOINTS).glob(".*.tmp"):
+        stale.unlink(missing_ok=True)
     steps = sorted(
         {
             int(path.stem.split("_")[1])
