@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import gymnasium
 import mujoco
 import numpy as np
 import pytest
@@ -110,6 +111,21 @@ def test_robots_start_on_their_tiles_and_stand_on_the_ground(workers: int) -> No
         ground = robots.terrain.height_at(base[:, :2])
         assert np.all((base[:, 2] - ground > 0.6) & (base[:, 2] - ground < 1.1))  # standing, on its tile
     env.close()
+
+
+def test_a_single_env_starts_on_the_tile_its_reset_asks_for() -> None:
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=TILE_KINDS, **SMALL))
+    single = gymnasium.make("Zerith1-v0", scenario=scenario).unwrapped
+    single.reset(seed=0)
+    at_start = single.data.qpos[:2].copy()
+    single.reset(seed=0, options={"tile": (2, 3)})
+    centre = scenario.terrain.tiles.tile_centres(np.array([2]), np.array([3]))[0]
+    assert np.abs(single.data.qpos[:2] - centre).max() <= scenario.terrain.spawn_jitter
+    assert np.abs(at_start - centre).max() > 5.0
+    for bad in ((3, 0), (0, 4), (1.5, 0), "a", (True, 0)):
+        with pytest.raises(ValueError, match="tile must be"):
+            single.reset(options={"tile": bad})
+    single.close()
 
 
 # ------------------------------------------------------------------------------------- curriculum

@@ -85,6 +85,25 @@ class TerrainLevels:
             )
         self.rule = rule
 
+    def place(self, index: int, tile: object) -> None:
+        """Start robot `index` on `tile` (level, kind column) from its next reset, its last episode unjudged;
+        a curriculum moves it on from there. ValueError unless the tile is on the grid."""
+        levels, columns = self.spec.num_levels, self.spec.num_columns
+        try:
+            level, column = tile  # type: ignore[misc]
+        except (TypeError, ValueError):
+            level = column = None
+        whole = all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in (level, column))
+        valid = whole and 0 <= level < levels and 0 <= column < columns  # type: ignore[operator]
+        if not valid:
+            kinds = self.spec.tiles.kinds if self.spec.tiles is not None else (self.spec.kind,)
+            raise ValueError(
+                f"tile must be (level, kind column) with level in [0, {levels - 1}] and column in "
+                f"[0, {columns - 1}] (kinds {', '.join(kinds)}), got {tile!r}"
+            )
+        self.levels[index], self.columns[index] = level, column
+        self.ended[index] = False
+
     def spawn_points(self, ids: np.ndarray) -> np.ndarray:
         """Move robots `ids` whose episode ended by the rule (if any); the centres (len(ids), 2) of their
         tiles, where their next episodes start."""

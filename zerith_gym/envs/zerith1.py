@@ -61,6 +61,8 @@ class Zerith1Env(gym.Env):
     - `obs_mode`: "dict" or "policy".
     - `command`: fixed (vx, vy, yaw rate); default: drawn during the episode (train, nominal) or
       (1, 0, 0) in the evaluation scenarios. `reset(options={"command": ...})` sets it for one episode.
+      On a tile terrain, `reset(options={"tile": (level, kind column)})` starts the robot on that tile
+      (default: level 0 of the first kind; a `TerrainCurriculum` moves it on from there).
     - `reward_weights`: overrides of the reward weights.
     - `terrain_seed`: seed of the uneven terrain's heights (fixed for the env's lifetime).
     - `episode_steps`: control steps before the time-out truncation (default 1000, 20 s). The env
@@ -102,7 +104,11 @@ class Zerith1Env(gym.Env):
     # ------------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        options = dict(options or {})
+        tile = options.pop("tile", None)
         command = reset_command(options)
+        if tile is not None:
+            self.robots.task.tiles.place(0, tile)
         self.robots.seed({0: self.np_random})
         policy, critic = self.robots.reset(_ROBOT, None if command is None else {0: command})
         self._needs_reset = False
