@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import math
 import re
 import tempfile
 import time
@@ -138,8 +139,15 @@ def status_markdown(run: Path) -> str:
     return "\n".join(lines)
 
 
-def curve_markdown(run: Path) -> str:
-    """The robustness curve as a table."""
+def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The 95% Wilson score interval of a share observed over `n` episodes."""
+    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
+def curve_markdown(run: Path, episodes: int) -> str:
+    """The robustness curve as a table, with the 95% interval of the newest Table-1 mean."""
     path = run / "robustness.csv"
     if not path.is_file():
         return "(no checkpoint evaluated yet)"
@@ -150,10 +158,19 @@ def curve_markdown(run: Path) -> str:
     for row in rows:
         cells = [f"{int(row['timesteps']):,}", f"{float(row['wall_s']) / 3600:.2f}", *(row[c] for c in CASES)]
         lines.append("| " + " | ".join([*cells, row["table1_mean"], row["vx_at_1.0"]]) + " |")
+    n = episodes * len(TABLE1_SCENARIOS)
+    low, high = wilson_interval(float(rows[-1]["table1_mean"]), n)
+    one_low, one_high = wilson_interval(0.5, episodes)
+    lines += [
+        "",
+        f"{episodes} episodes per case: the newest Table-1 mean ({n} episodes) lies in "
+        f"[{low:.2f}, {high:.2f}] (95% Wilson interval); one case's share is known to about "
+        f"+-{(one_high - one_low) / 2:.2f}.",
+    ]
     return "\n".join(lines)
 
 
-def update_docs(run: Path, docs: Path) -> None:
+def update_docs(run: Path, docs: Path, episodes: int) -> None:
     """Replace the run's section of `docs` (between the robust-run markers) with its current tables."""
     begin, end = "<!-- robust-run:begin -->", "<!-- robust-run:end -->"
     text = docs.read_text()
@@ -161,7 +178,7 @@ def update_docs(run: Path, docs: Path) -> None:
         raise ValueError(f"{docs} has no {begin} ... {end} section to replace")
     head, rest = text.split(begin, 1)
     tail = rest.split(end, 1)[1]
-    body = f"{status_markdown(run)}\n\nRobustness curve:\n\n{curve_markdown(run)}"
+    body = f"{status_markdown(run)}\n\nRobustness curve:\n\n{curve_markdown(run, episodes)}"
     docs.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
 
 
@@ -202,7 +219,7 @@ def main() -> None:
         print(row, flush=True)
         last = steps
     if args.docs is not None:
-        update_docs(args.run, args.docs)
+        update_docs(args.run, args.docs, args.episodes)
 
 
 if __name__ == "__main__":
