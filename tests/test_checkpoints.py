@@ -16,7 +16,8 @@ import torch as th
 import yaml
 
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo.checkpoints import CURVE_COLUMNS, RunState, restore_random_states
+from sb3_huri.zoo.checkpoints import RunState, restore_random_states
+from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
 from zerith_gym.callbacks import RandomizationCurriculum
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -74,6 +75,20 @@ def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage
     assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == [
         f"rl_model_{steps}_steps.zip" for steps in (128, 256, 384)
     ]
+
+
+def test_the_curve_skips_a_torn_row_and_is_cut_back_whole(tmp_path):
+    row = dict.fromkeys(CURVE_COLUMNS, float("nan"))
+    for steps in (64, 128, 192):
+        append_row(tmp_path, {**row, "timesteps": steps, "wall_s": steps / 10, "ep_return": 1.5})
+    with (tmp_path / "curve.csv").open("a") as file:
+        file.write("256,25.6,3")  # a kill while the row was written
+    rows = read_curve(tmp_path)
+    assert [r["timesteps"] for r in rows] == [64, 128, 192] and rows[1]["ep_return"] == 1.5
+    assert np.isnan(rows[0]["approx_kl"])
+    trim_curve(tmp_path, 128)
+    assert [r["timesteps"] for r in read_curve(tmp_path)] == [64, 128]
+    assert not list(tmp_path.glob(".*.tmp"))
 
 
 def test_random_states_come_back_from_a_checkpoint(tmp_path):

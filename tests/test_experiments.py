@@ -30,8 +30,9 @@ from sb3_huri.experiments.layout import (
     run_folder,
 )
 from sb3_huri.experiments.report import _ordering, mean_ci, t_quantile
-from sb3_huri.experiments.run_files import prune_checkpoints, read_curve
+from sb3_huri.experiments.run_files import prune_checkpoints
 from sb3_huri.zoo import load_run, next_run_folder
+from sb3_huri.zoo.curve import read_curve
 
 ENV = "Zerith1-v0"
 TINY_PRESET = """\

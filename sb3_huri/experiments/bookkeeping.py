@@ -9,22 +9,25 @@ import time
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import BaseCallback
-
 from sb3_huri.experiments.layout import RunStatus, write_status
-from sb3_huri.experiments.run_files import CURVE_FILE, checkpoint_paths, prune_checkpoints, replace_file
+from sb3_huri.experiments.run_files import checkpoint_paths, prune_checkpoints, replace_file
+from sb3_huri.zoo.checkpoints import CurveWriter
 
 
-class RunBookkeeping(BaseCallback):
+class RunBookkeeping(CurveWriter):
     """A checkpoint between rollouts every ``checkpoint_freq`` steps; after every rollout, the curve's row
-    and the status (steps and training seconds, counting the seconds of earlier sessions)."""
+    (``sb3_huri.zoo.curve``, as every training of the package writes it) and the status (steps and
+    training seconds, counting the seconds of earlier sessions)."""
 
-    def __init__(self, folder: Path, status: RunStatus, checkpoint_freq: int) -> None:
-        super().__init__()
-        self.folder, self.status, self.checkpoint_freq = folder, status, checkpoint_freq
+    def __init__(
+        self, folder: Path, status: RunStatus, checkpoint_freq: int, curriculum: Any | None = None
+    ) -> None:
+        super().__init__(folder, curriculum)
+        self.status, self.checkpoint_freq = status, checkpoint_freq
         self._began, self._seconds_before = time.time(), status.train_seconds
 
-    def elapsed(self) -> float:
+    @property
+    def wall_s(self) -> float:
         """Training seconds of the run, this session's included."""
         return self._seconds_before + time.time() - self._began
 
@@ -37,7 +40,7 @@ class RunBookkeeping(BaseCallback):
         vec_normalize = model.get_vec_normalize_env()
         if vec_normalize is not None:
             replace_file(vec_normalize.save, stats_path)
-        self.status.checkpoint, self.status.steps, self.status.train_seconds = steps, steps, self.elapsed()
+        self.status.checkpoint, self.status.steps, self.status.train_seconds = steps, steps, self.wall_s
         write_status(self.folder, self.status)
         prune_checkpoints(self.folder, keep=steps)
 
@@ -46,16 +49,6 @@ class RunBookkeeping(BaseCallback):
             self.checkpoint(self.model)
 
     def _on_rollout_end(self) -> None:
-        buffer = self.model.ep_info_buffer or []
-        returns = [info["r"] for info in buffer]
-        lengths = [info["l"] for info in buffer]
-        mean = (sum(returns) / len(returns)) if returns else float("nan")
-        length = (sum(lengths) / len(lengths)) if lengths else float("nan")
-        steps = self.model.num_timesteps
-        with open(self.folder / CURVE_FILE, "a") as f:
-            f.write(f"{steps},{mean!r},{length!r},{self.elapsed():.3f}\n")
-        self.status.steps, self.status.train_seconds = steps, self.elapsed()
+        super()._on_rollout_end()
+        self.status.steps, self.status.train_seconds = self.model.num_timesteps, self.wall_s
         write_status(self.folder, self.status)
-
-    def _on_step(self) -> bool:
-        return True

@@ -45,7 +45,7 @@ from sb3_huri.experiments.layout import (
     read_status,
     run_folder,
 )
-from sb3_huri.experiments.run_files import read_curve
+from sb3_huri.zoo.curve import read_curve
 
 REPORT_FILE = "report.md"
 RETURNS_FIGURE = "returns.png"
@@ -95,11 +95,11 @@ class RunResult:
     @property
     def final_return(self) -> float:
         """Mean of SB3's ``ep_rew_mean`` over the last tenth of training (NaN without episodes)."""
-        rows = [row for row in self.curve if math.isfinite(row["ep_rew_mean"])]
+        rows = [row for row in self.curve if math.isfinite(row["ep_return"])]
         if not rows:
             return math.nan
         last = rows[-1]["timesteps"]
-        tail = [row["ep_rew_mean"] for row in rows if row["timesteps"] >= 0.9 * last]
+        tail = [row["ep_return"] for row in rows if row["timesteps"] >= 0.9 * last]
         return float(np.mean(tail))
 
 
@@ -416,11 +416,11 @@ def _plot_returns(path: Path, grouped: dict[str, list[RunResult]], timesteps: in
     for method, runs in grouped.items():
         curves = []
         for run in runs:
-            rows = [r for r in run.curve if math.isfinite(r["ep_rew_mean"])]
+            rows = [r for r in run.curve if math.isfinite(r["ep_return"])]
             if len(rows) < 2:
                 continue
             x = np.array([r["timesteps"] for r in rows])
-            y = np.array([r["ep_rew_mean"] for r in rows])
+            y = np.array([r["ep_return"] for r in rows])
             curves.append(np.where((grid >= x[0]) & (grid <= x[-1]), np.interp(grid, x, y), np.nan))
         if not curves:
             continue

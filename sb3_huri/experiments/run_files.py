@@ -1,21 +1,12 @@
-"""A run folder's files while it trains: checkpoints, the learning curve, and writing them safely.
-
-Kept apart from ``training`` (which imports torch and SB3 when it trains) so that reading them (the
-report) imports neither.
-"""
+"""A run folder's checkpoints while it trains, and writing them safely (its learning curve is
+``sb3_huri.zoo.curve``, shared with every training of the package)."""
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 from collections.abc import Callable
 from pathlib import Path
 
-from sb3_huri.experiments.layout import atomic_write_text
-
-CURVE_FILE = "curve.csv"
-CURVE_COLUMNS = ("timesteps", "ep_rew_mean", "ep_len_mean", "seconds")
 CHECKPOINTS = "checkpoints"
 KEEP_CHECKPOINTS = 2
 
@@ -31,33 +22,6 @@ def replace_file(write: Callable[[str], None], path: Path) -> None:
     temporary = path.with_name(f".{path.name}.tmp")
     write(str(temporary))
     os.replace(temporary, path)
-
-
-def read_curve(folder: Path) -> list[dict[str, float]]:
-    """The rows of a run's ``curve.csv`` (a torn last line, from a kill while writing it, is left out)."""
-    path = folder / CURVE_FILE
-    if not path.exists():
-        return []
-    rows = []
-    with open(path, newline="") as f:
-        for row in csv.DictReader(f):
-            try:
-                rows.append({key: float(row[key]) for key in CURVE_COLUMNS})
-            except (KeyError, TypeError, ValueError):
-                continue
-    return rows
-
-
-def trim_curve(folder: Path, steps: int) -> None:
-    """Keep the curve's rows up to ``steps`` (those after a checkpoint are trained again on resuming)."""
-    kept = [row for row in read_curve(folder) if row["timesteps"] <= steps]
-    text = io.StringIO()
-    writer = csv.DictWriter(text, CURVE_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in kept:
-        values = {key: repr(value) for key, value in row.items()}
-        writer.writerow({**values, "timesteps": int(row["timesteps"])})
-    atomic_write_text(folder / CURVE_FILE, text.getvalue())
 
 
 def prune_checkpoints(folder: Path, keep: int) -> None:

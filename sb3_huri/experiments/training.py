@@ -9,8 +9,9 @@ It adds, per run folder (``layout``):
   ``checkpoint_freq`` steps (between rollouts, so that a checkpoint holds exactly the steps it trained
   on), each file written to a temporary name and renamed, then committed by naming it in
   ``status.json``; the two newest are kept;
-- ``curve.csv``: after every rollout, the steps and SB3's mean return and length of the last 100
-  episodes (what ``ep_rew_mean`` logs);
+- ``curve.csv``: after every rollout, the row every training of the package writes (``sb3_huri.zoo.curve``:
+  steps, training seconds, SB3's mean return and length of the last 100 episodes, fall rate, curriculum
+  scale and the update's figures);
 - resuming: the model, normalizer and step count of the last committed checkpoint; the curriculum
   follows the model's step count, so it continues at its stage. The robots of a resumed run are seeded
   ``seed + steps`` (fresh draws rather than a replay of the first episodes), and the curve loses the
@@ -25,7 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sb3_huri.experiments.layout import RunStatus, Settings, write_status
-from sb3_huri.experiments.run_files import checkpoint_paths, trim_curve
+from sb3_huri.experiments.run_files import checkpoint_paths
 
 
 def env_workers(cpus: int, n_envs: int) -> int:
@@ -57,6 +58,7 @@ def train_run(
     from sb3_huri.experiments.bookkeeping import RunBookkeeping
     from sb3_huri.zoo import save_run
     from sb3_huri.zoo.presets import preset_env, preset_model
+    from zerith_gym.callbacks import RandomizationCurriculum
 
     th.set_num_threads(1)  # small networks: one thread is fastest, and several runs share the machine
     preset = dict(settings.preset)
@@ -72,16 +74,16 @@ def train_run(
             model.set_random_seed(seed)
             model._last_obs = None  # start from a reset of the reseeded robots, not the saved observation
             status.resumed_from.append(resume)
-            trim_curve(folder, resume)
         else:
             model = preset_model(preset, env, method=status.method, seed=status.seed, device="cpu", verbose=0)
-            trim_curve(folder, 0)
         status.state, status.trained_to, status.evaluated = "training", None, None
         status.steps = model.num_timesteps
         write_status(folder, status)
 
-        bookkeeping = RunBookkeeping(folder, status, settings.checkpoint_freq)
-        callbacks = [*get_callback_list(preset), bookkeeping]
+        callbacks = get_callback_list(preset)
+        curriculum = next((c for c in callbacks if isinstance(c, RandomizationCurriculum)), None)
+        bookkeeping = RunBookkeeping(folder, status, settings.checkpoint_freq, curriculum)
+        callbacks.append(bookkeeping)
         remaining = settings.timesteps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=resume is None)
@@ -95,7 +97,7 @@ def train_run(
             env_id=settings.env,
         )
         status.trained_to, status.steps = settings.timesteps, model.num_timesteps
-        status.train_seconds = bookkeeping.elapsed()
+        status.train_seconds = bookkeeping.wall_s
         write_status(folder, status)
         return status
     finally:

@@ -5,9 +5,9 @@ A run folder in RL Zoo's layout (``sb3_huri.zoo.runs``) gets, besides the model 
 - ``<env_id>/state.json``: steps, the curriculum's stage, and one entry per training session (when, how many
   steps, wall time, hardware), so a run's cost adds up honestly across sessions;
 - ``<env_id>/rng.pt``: the random states of torch, numpy and Python at the checkpoint;
-- ``curve.csv``: one row per rollout (steps, cumulative wall time, episode length and return, fall rate,
-  curriculum scale, and the previous update's KL, clip fraction, explained variance, action noise and
-  learning rates).
+- ``curve.csv``: one row per rollout (``sb3_huri.zoo.curve``: steps, cumulative wall time, episode length and
+  return, fall rate, curriculum scale, and the previous update's KL, clip fraction, explained variance,
+  action noise and learning rates), written by ``CurveWriter``, which the experiment grid's runs use too.
 
 ``RunCheckpoint`` writes them every ``every_steps`` env steps and when training ends; ``resume_state`` reads
 them back. A resumed run restores the model, normalizer, random states and curriculum stage; its robots are
@@ -17,8 +17,6 @@ the same draws as a run that was never interrupted.
 
 from __future__ import annotations
 
-import csv
-import itertools
 import json
 import os
 import platform
@@ -32,13 +30,9 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
+from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, trim_curve
 from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
 
-CURVE_FILE = "curve.csv"
-CURVE_COLUMNS = (
-    "timesteps", "wall_s", "ep_len", "ep_return", "fall_rate", "scale",
-    "approx_kl", "clip_fraction", "explained_variance", "std", "learning_rate", "critic_learning_rate",
-)  # fmt: skip
 _TRAIN_COLUMNS = CURVE_COLUMNS[6:]
 
 
@@ -105,7 +99,54 @@ def restore_random_states(run: str | os.PathLike, env_id: str = DEFAULT_ENV_ID) 
     return True
 
 
-class RunCheckpoint(BaseCallback):
+class CurveWriter(BaseCallback):
+    """After every rollout, a row of the run's learning curve (`sb3_huri.zoo.curve`) in `folder`.
+
+    When training starts, the rows past the model's step count are dropped (a resumed run trains those steps
+    again). Subclasses say what the run's training wall time is (`wall_s`, all sessions).
+
+    :param folder: where `curve.csv` is
+    :param curriculum: the run's randomization curriculum (its `scale` is recorded), or None (scale 1)
+    """
+
+    def __init__(self, folder: str | os.PathLike, curriculum: Any | None = None, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.folder, self.curriculum = Path(folder), curriculum
+        self._episodes = self._falls = 0
+
+    @property
+    def wall_s(self) -> float:
+        """Training wall time of the run so far (seconds, all sessions)."""
+        raise NotImplementedError
+
+    def _on_training_start(self) -> None:
+        trim_curve(self.folder, self.num_timesteps)
+
+    def _on_step(self) -> bool:
+        infos = self.locals["infos"]
+        for i in np.flatnonzero(self.locals["dones"]):
+            self._episodes += 1
+            self._falls += bool(infos[i].get("fall", False))
+        return True
+
+    def _on_rollout_end(self) -> None:
+        figures = update_figures(self.model)
+        append_row(
+            self.folder,
+            {
+                "timesteps": self.num_timesteps,
+                "wall_s": round(self.wall_s, 1),
+                "ep_len": figures.pop("ep_len"),
+                "ep_return": figures.pop("ep_return"),
+                "fall_rate": self._falls / self._episodes if self._episodes else np.nan,
+                "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
+                **figures,
+            },
+        )
+        self._episodes = self._falls = 0
+
+
+class RunCheckpoint(CurveWriter):
     """Writes the run's newest checkpoint every `every_steps` env steps and at the end, and its curve.
 
     :param run: the run folder (RL Zoo's layout)
@@ -127,16 +168,15 @@ class RunCheckpoint(BaseCallback):
         env_id: str = DEFAULT_ENV_ID,
         verbose: int = 0,
     ) -> None:
-        super().__init__(verbose)
+        super().__init__(run, curriculum, verbose)
         if every_steps < 1:
             raise ValueError(f"every_steps must be a positive number of env steps, got {every_steps!r}")
         self.run, self.preset, self.run_args = Path(run), preset, run_args
-        self.every_steps, self.curriculum, self.max_wall_s = every_steps, curriculum, max_wall_s
+        self.every_steps, self.max_wall_s = every_steps, max_wall_s
         self.env_id = env_id
         self.state = RunState.read(self.run, env_id)
         self._began = self._last_save = 0.0
         self._saved_at = 0
-        self._episodes = self._falls = 0
         self._session: dict[str, Any] = {}
         self._stop_requested = False
 
@@ -150,9 +190,9 @@ class RunCheckpoint(BaseCallback):
         return self.state.wall_s + time.time() - self._began
 
     def _on_training_start(self) -> None:
+        super()._on_training_start()
         self._began = time.time()
         self._saved_at = self.num_timesteps
-        self._drop_curve_rows_after(self.num_timesteps)
         self._session = {
             "started": time.strftime("%Y-%m-%d %H:%M:%S"),
             "from_timesteps": self.num_timesteps,
@@ -161,51 +201,12 @@ class RunCheckpoint(BaseCallback):
         self.state.sessions.append(self._session)
 
     def _on_step(self) -> bool:
-        infos = self.locals["infos"]
-        for i in np.flatnonzero(self.locals["dones"]):
-            self._episodes += 1
-            self._falls += bool(infos[i].get("fall", False))
+        super()._on_step()
         if self.num_timesteps - self._saved_at >= self.every_steps:
             self.save()
         if self._stop_requested:
             return False
         return self.max_wall_s is None or time.time() - self._began < self.max_wall_s
-
-    def _on_rollout_end(self) -> None:
-        figures = update_figures(self.model)
-        row = {
-            "timesteps": self.num_timesteps,
-            "wall_s": round(self.wall_s, 1),
-            "ep_len": figures.pop("ep_len"),
-            "ep_return": figures.pop("ep_return"),
-            "fall_rate": self._falls / self._episodes if self._episodes else np.nan,
-            "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
-            **figures,
-        }
-        self._episodes = self._falls = 0
-        path = self.run / CURVE_FILE
-        new = not path.is_file()
-        self.run.mkdir(parents=True, exist_ok=True)
-        with path.open("a", newline="") as file:
-            writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
-            if new:
-                writer.writeheader()
-            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-
-    def _drop_curve_rows_after(self, timesteps: int) -> None:
-        """Forget the curve's rows past the checkpoint a resumed run starts from (a stopped session's last
-        steps, which the run trains again)."""
-        path = self.run / CURVE_FILE
-        if not path.is_file():
-            return
-        with path.open(newline="") as file:
-            rows = list(csv.DictReader(file))
-        kept = list(itertools.takewhile(lambda row: int(row["timesteps"]) <= timesteps, rows))
-        if len(kept) < len(rows):
-            with path.open("w", newline="") as file:
-                writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
-                writer.writeheader()
-                writer.writerows(kept)
 
     def _on_training_end(self) -> None:
         self.save()

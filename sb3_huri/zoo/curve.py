@@ -1,0 +1,77 @@
+"""A run's learning curve, ``curve.csv``: one row per rollout, appended, read, and cut back on resuming.
+
+Every training of this package writes the same curve (``examples/train_zerith.py``'s long runs through
+``sb3_huri.zoo.checkpoints.RunCheckpoint``, the experiment grid through its bookkeeping): steps, cumulative
+training wall time, the recent episodes' mean length and return (what SB3 logs as ``ep_len_mean`` and
+``ep_rew_mean``), the share of the rollout's ended episodes that fell, the curriculum's scale, and the
+previous update's approximate KL, clip fraction, critic explained variance, action noise and learning rates.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+CURVE_FILE = "curve.csv"
+CURVE_COLUMNS = (
+    "timesteps", "wall_s", "ep_len", "ep_return", "fall_rate", "scale",
+    "approx_kl", "clip_fraction", "explained_variance", "std", "learning_rate", "critic_learning_rate",
+)  # fmt: skip
+
+
+def _cell(value: object) -> object:
+    return f"{value:.6g}" if isinstance(value, float) else value
+
+
+def append_row(folder: str | os.PathLike, row: Mapping[str, object]) -> None:
+    """Append one rollout's row (keys: ``CURVE_COLUMNS``) to the curve of ``folder`` (the header first)."""
+    path = Path(folder) / CURVE_FILE
+    new = not path.is_file()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
+        if new:
+            writer.writeheader()
+        writer.writerow({key: _cell(value) for key, value in row.items()})
+
+
+def read_curve(folder: str | os.PathLike) -> list[dict[str, float]]:
+    """The curve's rows as floats (NaN where a figure was not logged); a torn last line, from a kill while
+    writing it, is left out."""
+    path = Path(folder) / CURVE_FILE
+    if not path.is_file():
+        return []
+    rows = []
+    with path.open(newline="") as file:
+        for row in csv.DictReader(file):
+            try:
+                values = {key: float(row[key]) for key in CURVE_COLUMNS}
+            except (KeyError, TypeError, ValueError):
+                continue
+            if math.isfinite(values["timesteps"]):
+                rows.append(values)
+    return rows
+
+
+def trim_curve(folder: str | os.PathLike, steps: int) -> None:
+    """Keep the rows up to ``steps`` (a resumed run trains the steps after its checkpoint again); the file
+    is replaced whole, never left torn."""
+    path = Path(folder) / CURVE_FILE
+    if not path.is_file():
+        return
+    with path.open(newline="") as file:
+        rows = list(csv.DictReader(file))
+    kept = [row for row in rows if row.get("timesteps", "").isdigit() and int(row["timesteps"]) <= steps]
+    if len(kept) == len(rows):
+        return
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=CURVE_COLUMNS, extrasaction="ignore")
+    writer.writeheader()
+    writer.writerows(kept)
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(text.getvalue())
+    os.replace(temporary, path)
