@@ -45,7 +45,8 @@ class PrecomputedRobots:
         )
         force, command, next_command = (rng.normal(size=(n, 3)) for _ in range(3))
         policy, critic = out.policy_obs.copy(), out.critic_obs.copy()
-        self.step_result = BatchStep(out, force, command, policy, critic, next_command)
+        level = np.zeros(n, dtype=int)
+        self.step_result = BatchStep(out, force, command, policy, critic, next_command, level)
 
     def step(self, actions: np.ndarray) -> BatchStep:
         return self.step_result

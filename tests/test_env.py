@@ -189,7 +189,7 @@ def test_bad_actions_and_options_raise():
     env = Zerith1Env()
     with pytest.raises(RuntimeError, match="before reset"):
         env.step(np.zeros(12))
-    with pytest.raises(ValueError, match="valid options: command"):
+    with pytest.raises(ValueError, match="valid options: command, tile"):
         env.reset(seed=0, options={"speed": 1})
     env.reset(seed=0)
     for bad in (np.full(12, np.nan), np.r_[np.zeros(11), np.inf]):

@@ -46,7 +46,7 @@ class ZerithOptions:
     reward_weights: Mapping[str, float] | None = None
     """Overrides of `zerith_gym.DEFAULT_REWARD_WEIGHTS`, by term name."""
     terrain_seed: int = 0
-    """Seed of the uneven terrain's heights (fixed for the env's lifetime)."""
+    """Seed of the height field's heights, uneven or tiles (fixed for the env's lifetime)."""
     episode_steps: int = EPISODE_STEPS
     """Control steps before the time-out truncation (1000: 20 s)."""
 
@@ -80,12 +80,13 @@ class ZerithOptions:
         return scenario.command
 
 
-def reset_command(options: Mapping[str, Any] | None) -> np.ndarray | None:
-    """The episode's command from reset `options` (None if not given); ValueError on unknown options."""
+def reset_command(options: Mapping[str, Any] | None, also_valid: tuple[str, ...] = ()) -> np.ndarray | None:
+    """The episode's command from reset `options` (None if not given); ValueError on options other than
+    `RESET_OPTIONS` and the caller's `also_valid`."""
     options = dict(options or {})
-    unknown = set(options) - set(RESET_OPTIONS)
+    unknown = set(options) - set(RESET_OPTIONS) - set(also_valid)
     if unknown:
-        valid = ", ".join(RESET_OPTIONS)
+        valid = ", ".join((*RESET_OPTIONS, *also_valid))
         raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {valid}")
     if "command" not in options:
         return None

@@ -2,7 +2,8 @@
 
 The task's math is a set of pure functions over arrays with a leading robot axis, written against the
 functions numpy and jax.numpy share (`zerith_gym.arrays`): `reset_values`, `step_disturbances`,
-`action_targets`, `ground`, `observations`, `reward_inputs`, `judge_step`. Both backends call them: the
+`action_targets`, `ground`, `observations`, `reward_inputs`, `judge_step`, `step_output`, and the two halves
+of a control step over one `TaskState` record, `begin_step` and `end_step`. Both backends call them: the
 CPU backend with numpy (`ZerithTask` below), the MJX backend with jax.numpy under `jax.jit`
 (`zerith_gym.mjx`). What a scenario sets is handed to them as arrays (`ScenarioArrays`), so a curriculum
 changes it without rebuilding anything.
@@ -471,8 +472,9 @@ def step_output(
 class TaskState(NamedTuple):
     """The task state of n robots between control steps (leading axis n).
 
-    One record for both backends: the CPU task (`ZerithTask.state`) keeps numpy arrays and updates them in
-    place; the MJX backend keeps JAX arrays inside its `MjxState` and replaces them every step.
+    One record for both backends: the CPU task (`ZerithTask.state`) keeps numpy arrays, replaced each step by
+    `begin_step` and `end_step` and written in place only at resets; the MJX backend keeps JAX arrays
+    inside its `MjxState`, replaced every step.
     """
 
     step_count: np.ndarray  # (n,) int, control steps into the episode

@@ -9,8 +9,9 @@ Modules, one job each:
 - ``layout``: the experiment folder, its settings and grid, run folders and their ``status.json``
   (atomic writes, locks, clear errors for foreign or corrupt folders);
 - ``training``: one run trained on the env's preset, resumable from its last checkpoint;
-- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, risk traces) on a trained run;
-- ``task``: one run's whole job (train, then evaluate), what a backend executes;
+- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, terrain tests of Tables 8/9,
+  risk traces) on a trained run;
+- ``job``: one run's whole job (train, then evaluate), what a backend executes;
 - ``backends``: a local process pool, or Ray tasks across a cluster;
 - ``driver``: the ``run`` command: skip finished runs, hand the rest to a backend, print progress;
 - ``report``: ``report.md`` and figures beside the paper's numbers (``paper``).

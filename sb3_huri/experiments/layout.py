@@ -7,7 +7,7 @@ An experiment folder ``DIR`` holds::
         <env>.zip, <env>/{config,args}.yml, <env>/vecnormalize.pkl    the trained model (when trained)
         status.json                           steps done, last checkpoint, trained, evaluated, times
         checkpoints/model_<steps>.zip, checkpoints/vecnormalize_<steps>.pkl
-        curve.csv                             training return per rollout (the Fig. 3 analog reads it)
+        curve.csv                             the learning curve (sb3_huri.zoo.curve; Fig. 3 analog)
         evaluation.json                       metrics per evaluation case (``evaluation.PROTOCOL``)
         risk_<case>.npz                       the critic's trace in the risk cases (the Fig. 5 analog)
     DIR/report.md, DIR/*.png                  written by ``python -m sb3_huri.experiments report DIR``

@@ -6,6 +6,7 @@
 - the training return (mean return of the last tenth of training) beside the paper's averages, and the
   Fig. 3 analog: return curves with 95% bands across seeds (``returns.png``);
 - the Fig. 4 / Table 2 analog: velocity-tracking errors under load, friction, both, and on uneven ground;
+- the Tables 8 and 9 analog: survival on the terrain tests (multi-terrain, stepping down platforms);
 - the Fig. 5 analog: the critic's interquartile range and beta on the plane, under sudden pushes and on
   uneven ground, and ``risk.png``: value-distribution CDFs and beta traces along one episode;
 - whether each of the paper's orderings holds in our means, and whether the confidence intervals

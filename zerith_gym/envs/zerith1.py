@@ -64,7 +64,7 @@ class Zerith1Env(gym.Env):
       On a tile terrain, `reset(options={"tile": (level, kind column)})` starts the robot on that tile
       (default: level 0 of the first kind; a `TerrainCurriculum` moves it on from there).
     - `reward_weights`: overrides of the reward weights.
-    - `terrain_seed`: seed of the uneven terrain's heights (fixed for the env's lifetime).
+    - `terrain_seed`: seed of the height field's heights, uneven or tiles (fixed for the env's lifetime).
     - `episode_steps`: control steps before the time-out truncation (default 1000, 20 s). The env
       truncates itself (and reports `episode_terms`); beyond 1000 also raise `gym.make`'s
       `max_episode_steps`.
@@ -104,9 +104,8 @@ class Zerith1Env(gym.Env):
     # ------------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        tile = options.pop("tile", None)
-        command = reset_command(options)
+        command = reset_command(options, also_valid=("tile",))
+        tile = (options or {}).get("tile")
         if tile is not None:
             self.robots.task.tiles.place(0, tile)
         self.robots.seed({0: self.np_random})
