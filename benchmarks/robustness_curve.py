@@ -97,9 +97,13 @@ STATUS_COLUMNS = (
 )  # fmt: skip
 
 
-def _median(rows: list[dict[str, str]], key: str) -> float:
+def _summary(rows: list[dict[str, str]], key: str) -> float:
+    """The median of a column over rows, or for `fall_rate` the mean: a rollout ends only a few episodes,
+    so its fall rate is mostly 0 or 1 and the median hides how many fell."""
     values = sorted(float(r[key]) for r in rows if r[key] not in ("", "nan"))
-    return values[len(values) // 2] if values else float("nan")
+    if not values:
+        return float("nan")
+    return sum(values) / len(values) if key == "fall_rate" else values[len(values) // 2]
 
 
 def status_markdown(run: Path) -> str:
@@ -121,8 +125,9 @@ def status_markdown(run: Path) -> str:
     lines += [
         "",
         "Per 1M steps, medians over the updates (`curve.csv`): mean training episode length and",
-        "return, share of ended episodes that fell, curriculum scale, approximate KL, clip fraction,",
-        "critic explained variance, action noise, the actor's mean learning rate:",
+        "return, share of ended episodes that fell (the mean over rollouts, not the median), curriculum",
+        "scale, approximate KL, clip fraction, critic explained variance, action noise, the actor's mean",
+        "learning rate:",
         "",
         "| steps | wall (h) | ep len | return | falls | scale | approx_kl | clip | expl. var. | std | lr |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
@@ -133,7 +138,7 @@ def status_markdown(run: Path) -> str:
     for block, members in [*blocks.items(), (-1, rows)]:
         label = "whole run" if block < 0 else f"{block}-{block + 1}M"
         wall = float(members[-1]["wall_s"]) / 3600
-        cells = [_median(members, key) for key in STATUS_COLUMNS]
+        cells = [_summary(members, key) for key in STATUS_COLUMNS]
         formatted = [f"{cells[0]:.0f}", f"{cells[1]:.0f}", *(f"{v:.3g}" for v in cells[2:])]
         lines.append(f"| {label} | {wall:.2f} | " + " | ".join(formatted) + " |")
     return "\n".join(lines)

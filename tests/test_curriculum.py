@@ -114,7 +114,7 @@ def test_fall_rate_gate_holds_a_stage_until_the_robots_stop_falling() -> None:
     model = SimpleNamespace(
         num_timesteps=0, get_env=lambda: env, logger=SimpleNamespace(record=lambda *a: None)
     )
-    curriculum = RandomizationCurriculum(steps=100, stages=4, max_fall_rate=0.25)
+    curriculum = RandomizationCurriculum(steps=100, stages=4, max_fall_rate=0.25, gate_episodes=4)
     curriculum.init_callback(model)
     curriculum.on_training_start({}, {})
 
@@ -126,13 +126,41 @@ def test_fall_rate_gate_holds_a_stage_until_the_robots_stop_falling() -> None:
         curriculum._on_step()
         return curriculum.scale
 
+    # The scale a rollout trains at is decided by the episodes that ended before it.
     assert rollout(0, [True, True]) == 0.0
-    assert rollout(90, [True, False]) == 0.0  # the schedule says 0.75, but every episode fell
-    assert rollout(95, [False, False, False, True]) == 0.0  # half of them fell
-    assert rollout(96, [False]) == 0.25  # a quarter fell: one stage up, one stage at a time
-    assert rollout(200, []) == 0.5
-    assert rollout(300, []) == 0.5  # no episode ended: no evidence, the stage holds
+    assert rollout(90, [True, False]) == 0.0  # the schedule says 0.75, but 2 episodes are too few to judge
+    assert rollout(91, [False]) == 0.0  # 3 of the last 4 fell
+    assert rollout(92, [False]) == 0.0  # 2 of the last 4
+    assert rollout(93, [False]) == 0.25  # 1 of the last 4: one stage up, one stage at a time
+    assert rollout(200, [False, False, False]) == 0.25  # the new stage's window holds one episode
+    assert rollout(300, []) == 0.5  # 4 episodes at this stage, none fell
+    assert rollout(400, []) == 0.5  # no new episode: no evidence, the stage holds
     assert [s.name for s in env.scenarios] == ["trainx0", "trainx0.25", "trainx0.5"]
+
+
+def test_fall_rate_gate_is_not_passed_by_one_lucky_rollout() -> None:
+    """Rollouts of a few robots often end a few episodes without a fall at a high fall rate; the gate
+    judges the stage's last `gate_episodes` episodes, so such a rollout does not move the stage."""
+    from types import SimpleNamespace
+
+    env = SimpleNamespace(set_scenario=lambda scenario: None, get_attr=lambda name: [SCENARIOS["train"]])
+    env.unwrapped = env
+    model = SimpleNamespace(
+        num_timesteps=0, get_env=lambda: env, logger=SimpleNamespace(record=lambda *a: None)
+    )
+    curriculum = RandomizationCurriculum(steps=100, stages=4, max_fall_rate=0.2, gate_episodes=50)
+    curriculum.init_callback(model)
+    curriculum.on_training_start({}, {})
+    rng = np.random.default_rng(0)
+    for rollout in range(200):  # a fall rate of 0.5, 3 episodes per rollout
+        model.num_timesteps = 10 * rollout  # the schedule alone would be at full scale from step 100
+        curriculum.on_rollout_start()
+        falls = rng.random(3) < 0.5
+        curriculum.locals = {"infos": [{"fall": bool(f)} for f in falls], "dones": [True] * 3}
+        curriculum._on_step()
+    assert curriculum.scale == 0.0
+    with pytest.raises(ValueError, match="gate_episodes must be a positive integer"):
+        RandomizationCurriculum(steps=100, gate_episodes=0)
 
 
 def test_update_threads_switch_by_phase_and_restore() -> None:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections import deque
 
 import numpy as np
 import torch as th
@@ -100,9 +101,11 @@ class RandomizationCurriculum(BaseCallback):
     By timesteps: over the first `steps` env steps of training (the model's `num_timesteps`, so a resumed
     run continues where it stopped), stage k of `stages` covers steps [k, k + 1) * steps / stages and
     trains at scale k / stages; from `steps` on, at scale 1 (the base scenario itself). With
-    `max_fall_rate`, a stage is also held until at most that share of the episodes that ended during the
-    last rollout ended in a fall (a performance gate, as legged-robot curricula use), and the scale then
-    rises by one stage at a time.
+    `max_fall_rate`, a stage is also held until at most that share of the last `gate_episodes` episodes
+    that ended at this stage ended in a fall (a performance gate, as legged-robot curricula use), and the
+    scale then rises by one stage at a time. The gate judges a window of episodes, not one rollout: a
+    rollout of a few robots ends a handful of episodes, and a handful without a fall happens by chance at
+    any fall rate. A stage's window starts empty (a resumed run refills it).
 
     `scenario`: the base (a name or a `Scenario`); default: the scenario the training env was made with.
     `start_stage`: the stage a resumed run had reached (its checkpoint's), from which the gate goes on.
@@ -118,6 +121,7 @@ class RandomizationCurriculum(BaseCallback):
         scenario: str | Scenario | None = None,
         max_fall_rate: float | None = None,
         start_stage: int | None = None,
+        gate_episodes: int = 100,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
@@ -128,13 +132,16 @@ class RandomizationCurriculum(BaseCallback):
             raise ValueError(f"curriculum stages must be a positive integer, got {stages!r}")
         if max_fall_rate is not None and not 0.0 <= max_fall_rate <= 1.0:
             raise ValueError(f"max_fall_rate must be in [0, 1], got {max_fall_rate!r}")
+        if not isinstance(gate_episodes, int) or gate_episodes < 1:
+            raise ValueError(f"gate_episodes must be a positive integer, got {gate_episodes!r}")
         self.steps, self.stages, self.max_fall_rate = steps, stages, max_fall_rate
         self.base = None if scenario is None else resolve_scenario(scenario)
         if start_stage is not None and not (isinstance(start_stage, int) and 0 <= start_stage <= stages):
             raise ValueError(f"start_stage must be an integer in [0, stages={stages}], got {start_stage!r}")
         self.start_stage = start_stage
         self.stage: int | None = None
-        self._episodes = self._falls = 0
+        self._falls: deque[bool] = deque(maxlen=gate_episodes)
+        """Whether each of the stage's last `gate_episodes` ended episodes was a fall."""
 
     @property
     def scale(self) -> float:
@@ -156,7 +163,8 @@ class RandomizationCurriculum(BaseCallback):
         stage = scheduled
         previous = self.stage if self.stage is not None else self.start_stage
         if self.max_fall_rate is not None and previous is not None:
-            settled = self._episodes > 0 and self._falls / self._episodes <= self.max_fall_rate
+            window = self._falls
+            settled = len(window) == window.maxlen and sum(window) <= self.max_fall_rate * len(window)
             stage = min(scheduled, previous + 1) if settled else min(scheduled, previous)
         if stage != self.stage:
             self.stage = stage
@@ -168,14 +176,13 @@ class RandomizationCurriculum(BaseCallback):
                 env.env_method("set_scenario", scenario)
             if self.verbose:
                 print(f"curriculum: scale {self.scale:g} at {self.num_timesteps} steps")
-        self._episodes = self._falls = 0
+            self._falls.clear()
         self.logger.record("curriculum/scale", self.scale)
 
     def _on_step(self) -> bool:
         infos = self.locals["infos"]
         for i in np.flatnonzero(self.locals["dones"]):
-            self._episodes += 1
-            self._falls += bool(infos[i].get("fall", False))
+            self._falls.append(bool(infos[i].get("fall", False)))
         return True
 
 
