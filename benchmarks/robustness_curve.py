@@ -6,12 +6,13 @@ model, evaluates the deterministic policy on the six Table-1 scenarios (continuo
 centroid, hands and feet, at the test ranges and 1 m/s), on `side-impact` (one 200 N push from the side),
 `nominal@1.0` and `nominal@0.5`, and appends a
 row per checkpoint to `<run>/robustness.csv`: steps, the run's training wall time at that step (from
-`curve.csv`) and the hardware it trained on (`state.json`), the survival rate of each case (`--episodes`
-robots, seeds `--seed` + i, the same for every checkpoint), the Table-1 mean and the mean forward velocity
-at 1 m/s.
+`curve.csv`) and the hardware it trained on (`state.json`), the episodes per case, the survival rate of
+each case (`--episodes` robots, seeds `--seed` + i, the same for every checkpoint), the Table-1 mean and
+the mean forward velocity at 1 m/s. A row evaluated with another number of episodes is evaluated again
+with `--episodes` when its checkpoint is still there, and kept as it is otherwise.
 
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1                 # new checkpoints only
-    python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --every 5000000 --episodes 10
+    python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --every 5000000 --episodes 50
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --docs docs/training.md  # docs' tables too
 
 With `--docs FILE`, the run's status (sessions, steps, wall time, curriculum, the update's figures) and the
@@ -27,6 +28,7 @@ import re
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import torch as th
 
@@ -36,7 +38,9 @@ from sb3_huri.zoo.checkpoints import RunState
 
 ENV_ID = "Zerith1-v0"
 CASES = (*TABLE1_SCENARIOS, "side-impact", "nominal@1.0", "nominal@0.5")
-COLUMNS = ("timesteps", "wall_s", "hardware", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
+COLUMNS = ("timesteps", "wall_s", "hardware", "episodes", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
+EARLY_EPISODES = 10
+"""Episodes per case of the rows written before the file had an `episodes` column."""
 
 
 def checkpoints(run: Path) -> dict[int, tuple[Path, Path]]:
@@ -151,31 +155,54 @@ def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float
     return max(centre - half, 0.0), min(centre + half, 1.0)
 
 
-def curve_markdown(run: Path, episodes: int) -> str:
-    """The robustness curve as a table, with the 95% interval of the newest Table-1 mean."""
+def read_rows(run: Path) -> dict[int, dict[str, str]]:
+    """The evaluated rows of a run's `robustness.csv` by step, each with its `episodes` per case."""
     path = run / "robustness.csv"
     if not path.is_file():
-        return "(no checkpoint evaluated yet)"
+        return {}
     with path.open() as file:
-        rows = list(csv.DictReader(file))
-    header = ["steps", "wall (h)", *CASES, "Table-1 mean", "vx @ 1.0"]
+        rows = {int(row["timesteps"]): row for row in csv.DictReader(file)}
+    for row in rows.values():
+        row["episodes"] = row.get("episodes") or str(EARLY_EPISODES)
+    return dict(sorted(rows.items()))
+
+
+def write_rows(run: Path, rows: dict[int, dict[str, Any]]) -> None:
+    """Write every row, by step, through a temporary file: an interrupted write leaves the old file."""
+    path = run / "robustness.csv"
+    partial = path.with_suffix(".csv.tmp")
+    with partial.open("w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(row for _, row in sorted(rows.items()))
+    partial.replace(path)
+
+
+def curve_markdown(run: Path) -> str:
+    """The robustness curve as a table, with the 95% interval of the newest Table-1 mean."""
+    rows = list(read_rows(run).values())
+    if not rows:
+        return "(no checkpoint evaluated yet)"
+    header = ["steps", "wall (h)", "episodes", *CASES, "Table-1 mean", "vx @ 1.0"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
-        cells = [f"{int(row['timesteps']):,}", f"{float(row['wall_s']) / 3600:.2f}", *(row[c] for c in CASES)]
-        lines.append("| " + " | ".join([*cells, row["table1_mean"], row["vx_at_1.0"]]) + " |")
+        steps, wall = f"{int(row['timesteps']):,}", f"{float(row['wall_s']) / 3600:.2f}"
+        cells = [steps, wall, row["episodes"], *(row[c] for c in CASES), row["table1_mean"], row["vx_at_1.0"]]
+        lines.append("| " + " | ".join(cells) + " |")
+    episodes = int(rows[-1]["episodes"])
     n = episodes * len(TABLE1_SCENARIOS)
     low, high = wilson_interval(float(rows[-1]["table1_mean"]), n)
     one_low, one_high = wilson_interval(0.5, episodes)
     lines += [
         "",
-        f"{episodes} episodes per case: the newest Table-1 mean ({n} episodes) lies in "
+        f"{episodes} episodes per case in the newest row: its Table-1 mean ({n} episodes) lies in "
         f"[{low:.2f}, {high:.2f}] (95% Wilson interval); one case's share is known to about "
         f"+-{(one_high - one_low) / 2:.2f}.",
     ]
     return "\n".join(lines)
 
 
-def update_docs(run: Path, docs: Path, episodes: int) -> None:
+def update_docs(run: Path, docs: Path) -> None:
     """Replace the run's section of `docs` (between the robust-run markers) with its current tables."""
     begin, end = "<!-- robust-run:begin -->", "<!-- robust-run:end -->"
     text = docs.read_text()
@@ -183,7 +210,7 @@ def update_docs(run: Path, docs: Path, episodes: int) -> None:
         raise ValueError(f"{docs} has no {begin} ... {end} section to replace")
     head, rest = text.split(begin, 1)
     tail = rest.split(end, 1)[1]
-    body = f"{status_markdown(run)}\n\nRobustness curve:\n\n{curve_markdown(run, episodes)}"
+    body = f"{status_markdown(run)}\n\nRobustness curve:\n\n{curve_markdown(run)}"
     docs.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
 
 
@@ -195,36 +222,32 @@ def main() -> None:
     parser.add_argument(
         "--every", type=int, default=5_000_000, help="env steps between evaluated checkpoints"
     )
-    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--episodes", type=int, default=50, help="episodes per case (default 50)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--docs", type=Path, default=None, help="also write the run's tables into this file")
     args = parser.parse_args()
     th.set_num_threads(1)
-    output = args.run / "robustness.csv"
-    done: list[int] = []
-    if output.is_file():
-        with output.open() as file:
-            done = [int(row["timesteps"]) for row in csv.DictReader(file)]
-    last = max(done, default=-args.every)
-    newest = max(checkpoints(args.run), default=None)
-    for steps, (model_file, normalizer_file) in checkpoints(args.run).items():
-        if steps in done or (steps - last < args.every and steps != newest):
+    rows = read_rows(args.run)
+    found = checkpoints(args.run)
+    newest = max(found, default=None)
+    last = -args.every
+    for steps, (model_file, normalizer_file) in found.items():
+        row = rows.get(steps)
+        if row is not None and int(row["episodes"]) == args.episodes:
+            last = steps
             continue
+        if row is None and steps - last < args.every and steps != newest:
+            continue  # a row of another episode count is redone wherever its checkpoint is still there
         began = time.time()
-        row = evaluate_checkpoint(model_file, normalizer_file, args.episodes, args.seed)
+        metrics = evaluate_checkpoint(model_file, normalizer_file, args.episodes, args.seed)
         trained = {"timesteps": steps, "wall_s": wall_time_at(args.run, steps)}
         trained["hardware"] = training_hardware(args.run, steps)
-        row = {**trained, **row, "eval_s": round(time.time() - began)}
-        new = not output.is_file()
-        with output.open("a", newline="") as file:
-            writer = csv.DictWriter(file, fieldnames=COLUMNS)
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
-        print(row, flush=True)
+        rows[steps] = {**trained, "episodes": args.episodes, **metrics, "eval_s": round(time.time() - began)}
+        write_rows(args.run, rows)
+        print(rows[steps], flush=True)
         last = steps
     if args.docs is not None:
-        update_docs(args.run, args.docs, args.episodes)
+        update_docs(args.run, args.docs)
 
 
 if __name__ == "__main__":

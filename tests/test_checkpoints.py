@@ -31,7 +31,7 @@ def _tiny_robust_preset(folder: Path) -> Path:
     preset["n_timesteps"] = 384
     # A curriculum that may rise a stage per rollout, held back only by falls.
     preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
-        steps=64, stages=4, max_fall_rate=1.0
+        steps=64, stages=4, max_fall_rate=1.0, gate_episodes=1
     )
     path = folder / "tiny.yml"
     path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))

@@ -39,6 +39,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
+from zerith_gym.infos import ended_falls
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario, scaled_scenario
 from zerith_gym.terrain_levels import LevelRule
@@ -180,9 +181,7 @@ class RandomizationCurriculum(BaseCallback):
         self.logger.record("curriculum/scale", self.scale)
 
     def _on_step(self) -> bool:
-        infos = self.locals["infos"]
-        for i in np.flatnonzero(self.locals["dones"]):
-            self._falls.append(bool(infos[i].get("fall", False)))
+        self._falls.extend(ended_falls(self.locals["dones"], self.locals["infos"]))
         return True
 
 

@@ -14,9 +14,11 @@ still gives the step's values.
 from __future__ import annotations
 
 import gc
-from collections.abc import Iterator, MutableMapping
+from collections.abc import Iterator, Mapping, MutableMapping, Sequence
 from itertools import repeat
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from zerith_gym.rewards import TermValues
 
@@ -119,3 +121,9 @@ class StepInfos(list):
 def step_infos(step: BatchStep) -> StepInfos:
     """The info mapping of every robot for `step` (keys documented in `Zerith1Env`)."""
     return StepInfos(step)
+
+
+def ended_falls(dones: np.ndarray, infos: Sequence[Mapping[str, Any]]) -> list[bool]:
+    """For each robot whose episode ended in a step (`dones`), whether it ended in a fall; an info without
+    a `fall` key (another env's) counts as no fall."""
+    return [bool(infos[i].get("fall", False)) for i in np.flatnonzero(dones)]

@@ -32,6 +32,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, trim_curve
 from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
+from zerith_gym.infos import ended_falls
 
 _TRAIN_COLUMNS = CURVE_COLUMNS[6:]
 
@@ -123,10 +124,9 @@ class CurveWriter(BaseCallback):
         trim_curve(self.folder, self.num_timesteps)
 
     def _on_step(self) -> bool:
-        infos = self.locals["infos"]
-        for i in np.flatnonzero(self.locals["dones"]):
-            self._episodes += 1
-            self._falls += bool(infos[i].get("fall", False))
+        falls = ended_falls(self.locals["dones"], self.locals["infos"])
+        self._episodes += len(falls)
+        self._falls += sum(falls)
         return True
 
     def _on_rollout_end(self) -> None:
