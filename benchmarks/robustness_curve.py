@@ -14,6 +14,7 @@ with `--episodes` when its checkpoint is still there, and kept as it is otherwis
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1                 # new checkpoints only
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --every 5000000 --episodes 50
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --docs docs/training.md  # docs' tables too
+    python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --plot docs/media/robust-run.png
 
 With `--docs FILE`, the run's status (sessions, steps, wall time, curriculum, the update's figures) and the
 robustness curve replace the text between `<!-- robust-run:begin -->` and `<!-- robust-run:end -->` in FILE.
@@ -30,6 +31,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch as th
 
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
@@ -202,6 +204,40 @@ def curve_markdown(run: Path) -> str:
     return "\n".join(lines)
 
 
+def plot_curve(run: Path, path: Path) -> None:
+    """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
+    mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis."""
+    from matplotlib.figure import Figure
+
+    rows = list(read_rows(run).values())
+    if not rows:
+        raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
+    steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
+    figure = Figure(figsize=(8, 4.5), layout="constrained")
+    axes = figure.add_subplot()
+    for case in (*TABLE1_SCENARIOS, "side-impact"):
+        style = ":" if case == "side-impact" else "-"
+        axes.plot(steps, [float(r[case]) for r in rows], style, lw=1, alpha=0.7, label=case)
+    mean = np.array([float(r["table1_mean"]) for r in rows])
+    cases = len(TABLE1_SCENARIOS)
+    bands = [wilson_interval(m, int(r["episodes"]) * cases) for m, r in zip(mean, rows, strict=True)]
+    axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
+    axes.plot(steps, mean, "k-", lw=2.5, label="Table-1 mean (95% band)")
+    axes.set_xlabel("environment steps (millions)")
+    axes.set_ylabel("survival rate (20-s episodes)")
+    axes.set_ylim(-0.02, 1.02)
+    axes.grid(alpha=0.3)
+    with (run / "curve.csv").open() as file:
+        curve = [(int(r["timesteps"]) / 1e6, float(r["scale"])) for r in csv.DictReader(file)]
+    scale_axes = axes.twinx()
+    scale_axes.plot([c[0] for c in curve], [c[1] for c in curve], color="tab:gray", lw=1, ls="--")
+    scale_axes.set_ylabel("curriculum scale (dashed)", color="tab:gray")
+    scale_axes.set_ylim(-0.02, 1.02)
+    axes.legend(fontsize=7, loc="upper left")
+    axes.set_title(f"{run.name}: survival under the paper's test disturbances, by training steps")
+    figure.savefig(path, dpi=110)
+
+
 def update_docs(run: Path, docs: Path) -> None:
     """Replace the run's section of `docs` (between the robust-run markers) with its current tables."""
     begin, end = "<!-- robust-run:begin -->", "<!-- robust-run:end -->"
@@ -225,6 +261,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="episodes per case (default 50)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--docs", type=Path, default=None, help="also write the run's tables into this file")
+    parser.add_argument("--plot", type=Path, default=None, help="also draw the curve into this image file")
     args = parser.parse_args()
     th.set_num_threads(1)
     rows = read_rows(args.run)
@@ -248,6 +285,8 @@ def main() -> None:
         last = steps
     if args.docs is not None:
         update_docs(args.run, args.docs)
+    if args.plot is not None:
+        plot_curve(args.run, args.plot)
 
 
 if __name__ == "__main__":
