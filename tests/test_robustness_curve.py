@@ -1,0 +1,91 @@
+"""benchmarks/robustness_curve.py: which checkpoints of a long run are evaluated, and what is written."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+
+import pytest
+
+from sb3_huri.zoo.curve import append_row
+from tests.test_trained_agents import load_script
+
+CASE_VALUE = 0.5
+
+
+def _fake_run(folder, checkpoint_steps, newest):
+    """A run folder with checkpoint files (never loaded: the evaluation is replaced), a curve and a state."""
+    (folder / "checkpoints").mkdir(parents=True)
+    for steps in checkpoint_steps:
+        (folder / "checkpoints" / f"rl_model_{steps}_steps.zip").write_bytes(b"")
+        (folder / "checkpoints" / f"rl_model_vecnormalize_{steps}_steps.pkl").write_bytes(b"")
+    (folder / "Zerith1-v0").mkdir()
+    (folder / "Zerith1-v0.zip").write_bytes(b"")
+    session = {"started": "then", "from_timesteps": 0, "to_timesteps": newest, "hardware": "x", "wall_s": 1}
+    state = {"timesteps": newest, "curriculum_stage": 2, "wall_s": 10.0, "sessions": [session]}
+    (folder / "Zerith1-v0" / "state.json").write_text(json.dumps(state))
+    for steps in range(0, newest + 1, 100):
+        append_row(folder, {"timesteps": steps, "wall_s": steps / 100, "scale": 0.5, "fall_rate": 0.25})
+
+
+def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoint_is_kept(
+    tmp_path, monkeypatch
+) -> None:
+    curve = load_script("benchmarks/robustness_curve.py")
+    run = tmp_path / "run"
+    _fake_run(run, checkpoint_steps=[100, 200, 300, 400, 500, 700], newest=800)
+    old = [  # written before the `episodes` column: 10 episodes per case
+        {"timesteps": 100, "wall_s": 1, "hardware": "test", **dict.fromkeys(curve.CASES, 0.1)},
+        {"timesteps": 250, "wall_s": 2.5, "hardware": "test", **dict.fromkeys(curve.CASES, 0.2)},
+    ]
+    with (run / "robustness.csv").open("w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=[c for c in curve.COLUMNS if c != "episodes"])
+        writer.writeheader()
+        writer.writerows({**row, "table1_mean": 0.1, "vx_at_1.0": 0.9, "eval_s": 1} for row in old)
+    evaluated = []
+
+    def evaluate_checkpoint(model_file, normalizer_file, episodes, seed):
+        evaluated.append((model_file.name, episodes))
+        return {**dict.fromkeys(curve.CASES, CASE_VALUE), "table1_mean": CASE_VALUE, "vx_at_1.0": 1.0}
+
+    monkeypatch.setattr(curve, "evaluate_checkpoint", evaluate_checkpoint)
+    docs = tmp_path / "training.md"
+    docs.write_text("before\n<!-- robust-run:begin -->\nold\n<!-- robust-run:end -->\nafter\n")
+    plot = tmp_path / "curve.png"
+    argv = ["robustness_curve.py", str(run), "--every", "300", "--episodes", "50", "--docs", str(docs)]
+    monkeypatch.setattr(sys, "argv", [*argv, "--plot", str(plot)])
+    curve.main()
+
+    # 100: redone (10 -> 50 episodes); 250: its checkpoint is gone, kept with 10; then every 300 steps
+    # from 100 (400, 700) and the newest model (800).
+    assert evaluated == [
+        ("rl_model_100_steps.zip", 50),
+        ("rl_model_400_steps.zip", 50),
+        ("rl_model_700_steps.zip", 50),
+        ("Zerith1-v0.zip", 50),
+    ]
+    rows = curve.read_rows(run)
+    assert list(rows) == [100, 250, 400, 700, 800]
+    assert [rows[s]["episodes"] for s in rows] == ["50", "10", "50", "50", "50"]
+    assert float(rows[250]["sudden-feet"]) == 0.2 and float(rows[700]["sudden-feet"]) == CASE_VALUE
+    assert rows[700]["wall_s"] == "7.0"  # the curve's wall time at that step
+
+    text = docs.read_text()
+    assert text.startswith("before\n") and text.endswith("after\n") and "old" not in text
+    assert "| 250 | 0.00 | 10 |" in text  # steps, wall hours, episodes
+    low, high = curve.wilson_interval(CASE_VALUE, 300)
+    assert f"[{low:.2f}, {high:.2f}]" in text and "(300 episodes)" in text
+    assert plot.stat().st_size > 10_000
+
+    evaluated.clear()
+    curve.main()  # nothing new: nothing is evaluated again
+    assert evaluated == []
+
+
+def test_a_plot_of_a_run_without_evaluations_is_a_clear_error(tmp_path) -> None:
+    curve = load_script("benchmarks/robustness_curve.py")
+    run = tmp_path / "run"
+    _fake_run(run, checkpoint_steps=[], newest=100)
+    with pytest.raises(ValueError, match="no evaluated checkpoint"):
+        curve.plot_curve(run, tmp_path / "curve.png")
