@@ -51,7 +51,7 @@ def _assert_tree_close(numpy_tree, jax_tree, rtol=2e-5, atol=2e-5):
         )
 
 
-@pytest.mark.parametrize("scenario", ["train", "uneven", "multi-terrain"])
+@pytest.mark.parametrize("scenario", ["train", "uneven", "multi-terrain", "robust"])
 def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     """One definition of the task: the same functions on numpy (float64) and traced by jax (float32)."""
     rng = np.random.default_rng(0)
@@ -69,8 +69,9 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     )
 
     step_count = rng.integers(0, 1000, n)
+    force_offset = rng.choice(arrays.force_offsets, n)
     force, command = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
-    args = (step_u, step_count, force, command, arrays)
+    args = (step_u, step_count, force_offset, force, command, arrays)
     _assert_tree_close(step_disturbances(*args), jax.jit(step_disturbances)(*_to_jax(args)))
 
     vector = reset_values(reset_u, arrays, spawn, jitter).domain_vector
@@ -226,13 +227,14 @@ def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
 
     gentle = scaled_scenario(SCENARIOS["robust"], 0.2)
     env = zerith_gym.make_vec_env(2, seed=0, backend="mjx", scenario=gentle, command=COMMAND)
-    table = gentle.force.table(1000)
+    table = gentle.force.table(2000)
     model = env.robots.physics.model
     bodies = {name: [model.body(b).id for b in names] for name, names in FORCE_TARGETS.items()}
     env.reset()
     seen = set()
-    for _ in range(520):  # the feet's phases start at step 400
-        step_count = np.asarray(env.robots.state.task.step_count).copy()
+    for _ in range(520):  # every target's phases come within 400 steps of any start phase
+        task = env.robots.state.task
+        step_count = np.asarray(task.step_count + task.force_offset)  # the table step about to be simulated
         _, _, dones, infos = env.step(np.zeros((2, 12)))
         applied = np.asarray(env.robots.state.data.xfrc_applied)[:, :, :3]
         for i, info in enumerate(infos):

@@ -69,6 +69,45 @@ def test_a_force_cycle_takes_turns_between_its_schedules():
         ForceCycle((continuous,), phase_steps=0)
     with pytest.raises(ValueError, match="one or more ForceSchedule"):
         ForceCycle(())
+    for phases in ((), (2,), (0, -1)):
+        with pytest.raises(ValueError, match=r"start_phases must be one or more phase indices in \[0, 2\)"):
+            ForceCycle((continuous, sudden), start_phases=phases)
+
+
+def test_robust_episodes_start_with_each_target_alike_and_the_first_impulse_at_two_seconds():
+    """`robust` starts each episode at the continuous phase of a target drawn at random; the draw takes a
+    reset uniform nothing else reads, so it is the same per seed and on both backends' task functions."""
+    gentle = scaled_scenario(SCENARIOS["robust"], 0.2)
+    n = 60
+    env = zerith_gym.make_vec_env(n, seed=3, scenario=gentle, workers=0)
+    env.reset()
+    task = env.robots.task
+    offsets = task.state.force_offset.copy()
+    counts = {offset: int(np.sum(offsets == offset)) for offset in (0, 200, 400)}
+    assert sum(counts.values()) == n and min(counts.values()) >= 10, counts
+    table = gentle.force.table(2000)
+    first_targets = table.target[offsets]
+    np.testing.assert_array_equal(first_targets, offsets // 200)  # centroid, hands, feet: TARGET_INDEX order
+    first_impulse = np.full(n, -1)
+    for step in range(120):
+        _, _, dones, infos = env.step(np.zeros((n, 12)))
+        assert not dones.any()  # at scale 0.2 a standing robot stays up this long
+        big = np.linalg.norm([info["external_force"] for info in infos], axis=1) > 0.2 * 150 - 1e-6
+        first_impulse = np.where((first_impulse < 0) & big, step, first_impulse)
+    np.testing.assert_array_equal(first_impulse, 100)
+    again = zerith_gym.make_vec_env(n, seed=3, scenario=gentle, workers=0)
+    again.reset()
+    np.testing.assert_array_equal(again.robots.task.state.force_offset, offsets)
+    env.close(), again.close()
+
+    one_start = replace(gentle, force=replace(gentle.force, start_phases=(0,)))
+    plain = zerith_gym.make_vec_env(4, seed=3, scenario=one_start, workers=0)
+    plain.reset()
+    assert not plain.robots.task.state.force_offset.any()
+    plain.close()
+    late = replace(gentle, force=replace(gentle.force, start_phases=(5,)))
+    with pytest.raises(ValueError, match="starts episodes 500 steps into its force cycle"):
+        zerith_gym.make_vec_env(1, scenario=late, episode_steps=500, workers=0)
 
 
 def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
@@ -76,13 +115,14 @@ def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
     no other body, robot by robot (their episodes are at different steps after falls)."""
     gentle = scaled_scenario(SCENARIOS["robust"], 0.2)  # robots with zero actions stand through it
     env = zerith_gym.make_vec_env(4, seed=0, scenario=gentle, workers=0)
-    table = gentle.force.table(1000)
+    table = gentle.force.table(2000)
     sim = env.robots.sim
     bodies = {target: [sim.models[0].body(b).id for b in names] for target, names in FORCE_TARGETS.items()}
     env.reset()
     seen = set()
-    for _ in range(520):  # the feet phases start at step 400
-        step_count = env.robots.task.state.step_count.copy()  # the episode step about to be simulated
+    for _ in range(520):  # every target's phases come within 400 steps of any start phase
+        state = env.robots.task.state
+        step_count = state.step_count + state.force_offset  # the table step about to be simulated
         _, _, _, infos = env.step(np.zeros((4, 12)))
         for i, info in enumerate(infos):
             target = list(FORCE_TARGETS)[table.target[step_count[i]]]

@@ -4,7 +4,8 @@ A schedule draws a horizontal force (uniform magnitude, uniform direction) at th
 and holds it for `duration_steps` control steps; in between, no force acts. `duration == period` is a
 continuous disturbance, a short duration an impulse. The same force vector acts on each body of the target
 group ("centroid": the root body; "hands" and "feet": each of the two bodies), at the body's centre of mass.
-A `ForceCycle` takes turns between schedules (targets and kinds of force) within an episode.
+A `ForceCycle` takes turns between schedules (targets and kinds of force) within an episode, starting
+each episode at one of its `start_phases`.
 """
 
 from __future__ import annotations
@@ -54,6 +55,11 @@ class ForceSchedule:
     def active(self) -> bool:
         return self.magnitude[1] > 0.0
 
+    @property
+    def start_offsets(self) -> tuple[int, ...]:
+        """The steps of its table an episode may start at: the first."""
+        return (0,)
+
     def scaled(self, scale: float) -> ForceSchedule:
         """This schedule with its magnitudes multiplied by `scale`."""
         return replace(self, magnitude=(scale * self.magnitude[0], scale * self.magnitude[1]))
@@ -70,18 +76,35 @@ class ForceSchedule:
 
 @dataclass(frozen=True)
 class ForceCycle:
-    """Schedules taking turns within an episode: `schedules[k]` acts over steps [k, k + 1) * `phase_steps`,
-    then the cycle starts again. Each schedule keeps its own timing in episode steps (an impulse schedule
-    with period 100 strikes at steps 100, 200, ... that fall in its phases)."""
+    """Schedules taking turns within an episode: `schedules[k]` acts over steps [k, k + 1) * `phase_steps`
+    of the cycle's table, then the cycle starts again. Each schedule keeps its own timing in table steps
+    (an impulse schedule with period 100 strikes at steps 100, 200, ... that fall in its phases).
+
+    Each episode starts at a phase drawn uniformly from `start_phases` (the table read from that phase's
+    first step on). With the default, every episode starts at phase 0, so the later phases act only on
+    robots that lasted through the earlier ones: a policy that falls early trains little under them.
+    """
 
     schedules: tuple[ForceSchedule, ...]
     phase_steps: int = 100
+    start_phases: tuple[int, ...] = (0,)
 
     def __post_init__(self) -> None:
         if not self.schedules or not all(isinstance(s, ForceSchedule) for s in self.schedules):
             raise ValueError("ForceCycle needs one or more ForceSchedule")
         if not isinstance(self.phase_steps, int) or self.phase_steps < 1:
             raise ValueError(f"ForceCycle phase_steps must be a positive integer, got {self.phase_steps!r}")
+        phases = range(len(self.schedules))
+        if not self.start_phases or not all(isinstance(p, int) and p in phases for p in self.start_phases):
+            raise ValueError(
+                f"ForceCycle start_phases must be one or more phase indices in [0, {len(self.schedules)}), "
+                f"got {self.start_phases!r}"
+            )
+
+    @property
+    def start_offsets(self) -> tuple[int, ...]:
+        """The steps of its table an episode may start at: the first step of each start phase."""
+        return tuple(phase * self.phase_steps for phase in self.start_phases)
 
     @property
     def active(self) -> bool:

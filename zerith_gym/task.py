@@ -94,12 +94,15 @@ class ScenarioArrays(NamedTuple):
     scenario between rollouts by swapping arrays (and a jitted MJX step needs no new trace).
     """
 
-    due: np.ndarray  # (episode_steps, 4) bool, at each control step: force draw, force on, command draw, push
+    due: np.ndarray  # (episode_steps, 2) bool, at each control step of an episode: command draw, push
     domain_low: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
     domain_high: np.ndarray  # (DOMAIN_VECTOR_SIZE,)
-    force_magnitude: np.ndarray  # (episode_steps, 2) N, the range of a force drawn at each step
-    force_target: np.ndarray  # (episode_steps,) int, the target (`disturbances.TARGET_INDEX`) at each step
-    force_direction: np.ndarray  # (episode_steps,) rad, a drawn force's direction (NaN: uniform)
+    # The force program's table, read at a robot's episode step plus its episode's start offset:
+    force_due: np.ndarray  # (2 episode_steps, 2) bool, at each table step: force draw, force on
+    force_magnitude: np.ndarray  # (2 episode_steps, 2) N, the range of a force drawn at each table step
+    force_target: np.ndarray  # (2 episode_steps,) int, the target (`disturbances.TARGET_INDEX`)
+    force_direction: np.ndarray  # (2 episode_steps,) rad, a drawn force's direction (NaN: uniform)
+    force_offsets: np.ndarray  # (k,) int, the table steps an episode may start at (one drawn per episode)
     push_velocity: np.ndarray  # (2,) m/s
     command_low: np.ndarray  # (3,)
     command_high: np.ndarray  # (3,)
@@ -114,15 +117,23 @@ class ScenarioArrays(NamedTuple):
 def scenario_arrays(
     scenario: Scenario, command: tuple[float, float, float] | None, episode_steps: int
 ) -> ScenarioArrays:
-    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`."""
+    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`.
+
+    The force table covers twice the episode, so that an episode may start anywhere in its first half
+    (`ForceCycle.start_phases`); ValueError if the force program starts episodes later than that.
+    """
     ranges = scenario.randomization
     command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
     steps = np.arange(episode_steps)
-    force = scenario.force.table(episode_steps)
+    offsets = scenario.force.start_offsets
+    if max(offsets) >= episode_steps:
+        raise ValueError(
+            f"scenario {scenario.name!r} starts episodes {max(offsets)} steps into its force cycle; "
+            f"episodes of {episode_steps} steps allow fewer than {episode_steps}"
+        )
+    force = scenario.force.table(2 * episode_steps)
     due = np.column_stack(
         [
-            force.draw,
-            force.on,
             (steps > 0) & (steps % command_interval == 0) & (command is None),
             push_due(episode_steps, round(ranges.push_interval_s / robot.CONTROL_DT), ranges.push_velocity),
         ]
@@ -133,9 +144,11 @@ def scenario_arrays(
         due=due,
         domain_low=domain_low,
         domain_high=domain_high,
+        force_due=np.column_stack([force.draw, force.on]),
         force_magnitude=force.magnitude,
         force_target=force.target,
         force_direction=force.direction,
+        force_offsets=np.array(offsets, dtype=int),
         push_velocity=np.array(ranges.push_velocity, dtype=float),
         command_low=low,
         command_high=high,
@@ -156,6 +169,7 @@ class ResetValues(NamedTuple):
     lags: np.ndarray  # (n, DECIMATION) control steps of delay of each physics sub-step's action
     command: np.ndarray  # (n, 3)
     noise_uniforms: np.ndarray  # (n, STEP_DRAWS) the uniforms of the first observation's noise
+    force_offset: np.ndarray  # (n,) int, the step of the force table the episode starts at
 
 
 def reset_values(
@@ -180,12 +194,17 @@ def reset_values(
     domain_vector = uniform_in((sc.domain_low, sc.domain_high), u["domain"])
     domain = DomainParams.from_vector(domain_vector)
     drawn = commands_from_uniforms(u["command"], sc.command_low, sc.command_high, sc.standing_probability)
+    # The start offset takes the first observation's force uniform, which nothing else reads (no force is
+    # drawn at a reset): scenarios with one start offset draw exactly what they drew without any.
+    choices = sc.force_offsets.shape[0]
+    pick = xp.minimum((u["step"][:, _FORCE.start] * choices).astype(int), choices - 1)
     return ResetValues(
         qpos=qpos,
         domain_vector=domain_vector,
         lags=delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION),
         command=xp.where(sc.has_fixed_command, sc.fixed_command, drawn),
         noise_uniforms=u["step"],
+        force_offset=sc.force_offsets[pick],
     )
 
 
@@ -205,24 +224,29 @@ class Disturbances(NamedTuple):
 
 
 def step_disturbances(
-    uniforms: np.ndarray, step_count: np.ndarray, force: np.ndarray, command: np.ndarray, sc: ScenarioArrays
+    uniforms: np.ndarray,
+    step_count: np.ndarray,
+    force_offset: np.ndarray,
+    force: np.ndarray,
+    command: np.ndarray,
+    sc: ScenarioArrays,
 ) -> Disturbances:
     """Redraw forces, commands and pushes where the scenario's tables say at each robot's episode step
-    `step_count` (n,), from uniforms (n, STEP_DRAWS)."""
+    `step_count` (n,) (the force table at `step_count + force_offset`), from uniforms (n, STEP_DRAWS)."""
     xp = namespace(uniforms, step_count)
     due = sc.due[step_count]
-    drawn_force = horizontal_vectors(
-        uniforms[:, _FORCE], sc.force_magnitude[step_count], sc.force_direction[step_count]
-    )
+    at = step_count + force_offset
+    force_due = sc.force_due[at]
+    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude[at], sc.force_direction[at])
     drawn_command = commands_from_uniforms(
         uniforms[:, _COMMAND], sc.command_low, sc.command_high, sc.standing_probability
     )
     return Disturbances(
-        force=xp.where(due[:, 0:1], drawn_force, force) * due[:, 1:2],
-        force_target=sc.force_target[step_count],
-        command=xp.where(due[:, 2:3], drawn_command, command),
-        kicks=horizontal_vectors(uniforms[:, _PUSH], sc.push_velocity)[:, :2] * due[:, 3:4],
-        push=due[:, 3],
+        force=xp.where(force_due[:, 0:1], drawn_force, force) * force_due[:, 1:2],
+        force_target=sc.force_target[at],
+        command=xp.where(due[:, 0:1], drawn_command, command),
+        kicks=horizontal_vectors(uniforms[:, _PUSH], sc.push_velocity)[:, :2] * due[:, 1:2],
+        push=due[:, 1],
     )
 
 
@@ -478,6 +502,7 @@ class TaskState(NamedTuple):
     """
 
     step_count: np.ndarray  # (n,) int, control steps into the episode
+    force_offset: np.ndarray  # (n,) int, the force table's step at the episode's start
     gait_step: np.ndarray  # (n,) int, control steps into the gait cycle
     command: np.ndarray  # (n, 3)
     actions: np.ndarray  # (n, 3, 12) a_t, a_{t-1}, a_{t-2}
@@ -493,6 +518,7 @@ class TaskState(NamedTuple):
         """The state of n robots before their first reset (numpy)."""
         return TaskState(
             step_count=np.zeros(n, dtype=int),
+            force_offset=np.zeros(n, dtype=int),
             gait_step=np.zeros(n, dtype=int),
             command=np.zeros((n, 3)),
             actions=np.zeros((n, 3, robot.NUM_JOINTS)),
@@ -516,7 +542,7 @@ def begin_step(
     """
     xp = namespace(actions, state.actions)
     history = xp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
-    drawn = step_disturbances(uniforms, state.step_count, state.force, state.command, sc)
+    drawn = step_disturbances(uniforms, state.step_count, state.force_offset, state.force, state.command, sc)
     state = state._replace(actions=history, force=drawn.force, command=drawn.command)
     return state, drawn, action_targets(history)
 
@@ -613,6 +639,7 @@ class ZerithTask:
         state.domain_vector[ids] = start.domain_vector
         state.lags[ids] = start.lags
         state.command[ids] = start.command
+        state.force_offset[ids] = start.force_offset
         self._uniforms[ids] = start.noise_uniforms  # the first observation's noise
         for started in (state.step_count, state.gait_step, state.actions, state.joint_vel, state.force):
             started[ids] = 0

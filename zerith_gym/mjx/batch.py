@@ -168,6 +168,7 @@ class MjxBatch:
         )
         task = TaskState(
             step_count=jnp.zeros(n, jnp.int32),
+            force_offset=start.force_offset.astype(jnp.int32),
             gait_step=jnp.zeros(n, jnp.int32),
             command=command,
             actions=actions,
