@@ -1,7 +1,7 @@
 """The robustness learning curve of a long run: its checkpoints evaluated on the paper's Table-1 scenarios.
 
 For every checkpoint of a run (`<run>/checkpoints/rl_model_<steps>_steps.zip` and its normalizer, written by
-`examples/train_zerith.py`) at least `--every` steps after the last one evaluated, and for the run's newest
+`examples/train_zerith.py`) at least `--every` steps after the previous row of the curve, and for the run's newest
 model, evaluates the deterministic policy on the six Table-1 scenarios (continuous and sudden forces on
 centroid, hands and feet, at the test ranges and 1 m/s), on `side-impact` (one 200 N push from the side),
 `nominal@1.0` and `nominal@0.5`, and appends a
@@ -157,6 +157,53 @@ def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float
     return max(centre - half, 0.0), min(centre + half, 1.0)
 
 
+TREND_CASES = ("table1_mean", "continuous-feet", "sudden-feet")
+"""The columns whose trend since full scale the docs state: the Table-1 mean and the lagging feet cases."""
+
+
+def trend(steps: np.ndarray, values: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of `values` per 10M `steps` and the half-width of its 95% t interval.
+
+    Whether a curve still rises is read from the slope over its points, not from two noisy ends."""
+    from scipy.stats import t as student_t
+
+    if len(steps) < 3:
+        raise ValueError(f"a trend needs at least 3 points, got {len(steps)}")
+    x = np.asarray(steps, dtype=float) / 1e7
+    y = np.asarray(values, dtype=float)
+    dx = x - x.mean()
+    slope = float(dx @ (y - y.mean()) / (dx @ dx))
+    residuals = y - y.mean() - slope * dx
+    stderr = math.sqrt(float(residuals @ residuals) / (len(x) - 2) / float(dx @ dx))
+    return slope, stderr * float(student_t.ppf(0.975, len(x) - 2))
+
+
+def full_scale_step(run: Path) -> int | None:
+    """The first step at which the run's curriculum scale reached 1 (`curve.csv`), or None."""
+    with (run / "curve.csv").open() as file:
+        for row in csv.DictReader(file):
+            if row.get("scale") not in (None, "", "nan") and float(row["scale"]) >= 1.0:
+                return int(row["timesteps"])
+    return None
+
+
+def trend_markdown(run: Path, rows: list[dict[str, str]]) -> str:
+    """A sentence on how fast the curve rose since the curriculum reached full scale, or "" if too early."""
+    since = full_scale_step(run)
+    later = [r for r in rows if since is not None and int(r["timesteps"]) >= since]
+    if len(later) < 3:
+        return ""
+    steps = np.array([int(r["timesteps"]) for r in later])
+    parts = []
+    for key in TREND_CASES:
+        slope, half = trend(steps, np.array([float(r[key]) for r in later]))
+        parts.append(f"{key} {slope:+.3f} +- {half:.3f}")
+    return (
+        f"Since the curriculum reached full scale ({since:,} steps), per 10M steps (least-squares slope over "
+        f"{len(later)} rows, 95% t interval): " + ", ".join(parts) + "."
+    )
+
+
 def read_rows(run: Path) -> dict[int, dict[str, str]]:
     """The evaluated rows of a run's `robustness.csv` by step, each with its `episodes` per case."""
     path = run / "robustness.csv"
@@ -201,7 +248,8 @@ def curve_markdown(run: Path) -> str:
         f"[{low:.2f}, {high:.2f}] (95% Wilson interval); one case's share is known to about "
         f"+-{(one_high - one_low) / 2:.2f}.",
     ]
-    return "\n".join(lines)
+    sentence = trend_markdown(run, rows)
+    return "\n".join([*lines, "", sentence] if sentence else lines)
 
 
 def plot_curve(run: Path, path: Path) -> None:
@@ -267,13 +315,12 @@ def main() -> None:
     rows = read_rows(args.run)
     found = checkpoints(args.run)
     newest = max(found, default=None)
-    last = -args.every
     for steps, (model_file, normalizer_file) in found.items():
         row = rows.get(steps)
         if row is not None and int(row["episodes"]) == args.episodes:
-            last = steps
             continue
-        if row is None and steps - last < args.every and steps != newest:
+        previous = max((s for s in rows if s < steps), default=-args.every)  # kept rows count too
+        if row is None and steps - previous < args.every and steps != newest:
             continue  # a row of another episode count is redone wherever its checkpoint is still there
         began = time.time()
         metrics = evaluate_checkpoint(model_file, normalizer_file, args.episodes, args.seed)
@@ -282,7 +329,6 @@ def main() -> None:
         rows[steps] = {**trained, "episodes": args.episodes, **metrics, "eval_s": round(time.time() - began)}
         write_rows(args.run, rows)
         print(rows[steps], flush=True)
-        last = steps
     if args.docs is not None:
         update_docs(args.run, args.docs)
     if args.plot is not None:

@@ -6,6 +6,7 @@ import csv
 import json
 import sys
 
+import numpy as np
 import pytest
 
 from sb3_huri.zoo.curve import append_row
@@ -57,17 +58,16 @@ def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoin
     monkeypatch.setattr(sys, "argv", [*argv, "--plot", str(plot)])
     curve.main()
 
-    # 100: redone (10 -> 50 episodes); 250: its checkpoint is gone, kept with 10; then every 300 steps
-    # from 100 (400, 700) and the newest model (800).
+    # 100: redone (10 -> 50 episodes); 250: its checkpoint is gone, kept with 10, and still a point of the
+    # curve: the next is at least 300 steps after it (700), then the newest model (800).
     assert evaluated == [
         ("rl_model_100_steps.zip", 50),
-        ("rl_model_400_steps.zip", 50),
         ("rl_model_700_steps.zip", 50),
         ("Zerith1-v0.zip", 50),
     ]
     rows = curve.read_rows(run)
-    assert list(rows) == [100, 250, 400, 700, 800]
-    assert [rows[s]["episodes"] for s in rows] == ["50", "10", "50", "50", "50"]
+    assert list(rows) == [100, 250, 700, 800]
+    assert [rows[s]["episodes"] for s in rows] == ["50", "10", "50", "50"]
     assert float(rows[250]["sudden-feet"]) == 0.2 and float(rows[700]["sudden-feet"]) == CASE_VALUE
     assert rows[700]["wall_s"] == "7.0"  # the curve's wall time at that step
 
@@ -89,3 +89,35 @@ def test_a_plot_of_a_run_without_evaluations_is_a_clear_error(tmp_path) -> None:
     _fake_run(run, checkpoint_steps=[], newest=100)
     with pytest.raises(ValueError, match="no evaluated checkpoint"):
         curve.plot_curve(run, tmp_path / "curve.png")
+
+
+def test_the_trend_is_the_least_squares_slope_with_its_t_interval() -> None:
+    from scipy import stats
+
+    curve = load_script("benchmarks/robustness_curve.py")
+    rng = np.random.default_rng(0)
+    steps = np.sort(rng.uniform(60e6, 120e6, size=12)).astype(int)
+    values = 0.3 + 0.025 * steps / 1e7 + rng.normal(0, 0.04, size=12)
+    slope, half = curve.trend(steps, values)
+    reference = stats.linregress(steps / 1e7, values)
+    assert slope == pytest.approx(reference.slope)
+    assert half == pytest.approx(reference.stderr * stats.t.ppf(0.975, 10))
+    with pytest.raises(ValueError, match="at least 3 points"):
+        curve.trend(steps[:2], values[:2])
+
+
+def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
+    curve = load_script("benchmarks/robustness_curve.py")
+    run = tmp_path / "run"
+    _fake_run(run, checkpoint_steps=[], newest=0)
+    for steps, scale in ((100, 0.5), (200, 1.0), (300, 1.0)):
+        append_row(run, {"timesteps": steps, "wall_s": 1, "scale": scale, "fall_rate": 0.0})
+    rows = [  # a rise of 0.1 per 10M steps after full scale; a low row before it that must not count
+        {"timesteps": str(s), **{k: str(v) for k in curve.TREND_CASES}}
+        for s, v in ((100, 0.9), (2e7, 0.2), (3e7, 0.3), (4e7, 0.4))
+    ]
+    rows = [{**r, "timesteps": str(int(float(r["timesteps"])))} for r in rows]
+    sentence = curve.trend_markdown(run, rows)
+    assert "(200 steps)" in sentence and "over 3 rows" in sentence
+    assert "table1_mean +0.100 +- 0.000" in sentence and "sudden-feet +0.100" in sentence
+    assert curve.trend_markdown(run, rows[:3]) == ""  # two rows since full scale: no trend yet
