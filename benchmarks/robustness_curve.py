@@ -1,8 +1,8 @@
 """The robustness learning curve of a long run: its checkpoints evaluated on the paper's Table-1 scenarios.
 
 For every checkpoint of a run (`<run>/checkpoints/rl_model_<steps>_steps.zip` and its normalizer, written by
-`examples/train_zerith.py`) at least `--every` steps after the previous row of the curve, and for the run's newest
-model, evaluates the deterministic policy on the six Table-1 scenarios (continuous and sudden forces on
+`examples/train_zerith.py`) at least `--every` steps after the previous row of the curve, and for the run's
+newest model, evaluates the deterministic policy on the six Table-1 scenarios (continuous and sudden forces on
 centroid, hands and feet, at the test ranges and 1 m/s), on `side-impact` (one 200 N push from the side),
 `nominal@1.0` and `nominal@0.5`, and appends a
 row per checkpoint to `<run>/robustness.csv`: steps, the run's training wall time at that step (from
