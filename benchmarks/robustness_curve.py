@@ -165,17 +165,12 @@ def trend(steps: np.ndarray, values: np.ndarray) -> tuple[float, float]:
     """Least-squares slope of `values` per 10M `steps` and the half-width of its 95% t interval.
 
     Whether a curve still rises is read from the slope over its points, not from two noisy ends."""
-    from scipy.stats import t as student_t
+    from scipy import stats
 
     if len(steps) < 3:
         raise ValueError(f"a trend needs at least 3 points, got {len(steps)}")
-    x = np.asarray(steps, dtype=float) / 1e7
-    y = np.asarray(values, dtype=float)
-    dx = x - x.mean()
-    slope = float(dx @ (y - y.mean()) / (dx @ dx))
-    residuals = y - y.mean() - slope * dx
-    stderr = math.sqrt(float(residuals @ residuals) / (len(x) - 2) / float(dx @ dx))
-    return slope, stderr * float(student_t.ppf(0.975, len(x) - 2))
+    fit = stats.linregress(np.asarray(steps, dtype=float) / 1e7, np.asarray(values, dtype=float))
+    return float(fit.slope), float(fit.stderr * stats.t.ppf(0.975, len(steps) - 2))
 
 
 def full_scale_step(run: Path) -> int | None:
