@@ -20,8 +20,9 @@ written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip`
     python examples/watch_zerith.py logs/huri/Zerith1-v0_1
 
 Every `--checkpoint-freq` steps and at the end, the run folder gets its newest checkpoint: model,
-normalizer, random states, curriculum stage and the sessions' wall time (`sb3_huri.zoo.checkpoints`), and
-`curve.csv` a row per rollout; `<run>/checkpoints/` keeps every checkpoint's model and normalizer.
+normalizer, random states, curriculum stage, terrain levels and the sessions' wall time
+(`sb3_huri.zoo.checkpoints`), and `curve.csv` a row per rollout; `<run>/checkpoints/` keeps every
+checkpoint's model and normalizer.
 `--resume` continues from the newest checkpoint, so a run can train over many sessions (`kill` or Ctrl-C
 stops it at the next step with a checkpoint; a hard stop loses at most `--checkpoint-freq` steps).
 TensorBoard logs include the episode sums of every reward term (`terms/<name>`) and the fall rate.
@@ -41,7 +42,7 @@ from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import METHODS, next_run_folder, read_preset
-from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState, restore_random_states
+from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState, restore_random_states, start_on_levels
 from sb3_huri.zoo.presets import preset_env, preset_model
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
@@ -128,6 +129,8 @@ def main() -> None:
         if state.timesteps != model.num_timesteps:
             print(f"warning: {run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
         restore_random_states(run)
+        if state.terrain_levels is not None:  # the terrain curriculum goes on from where its robots were
+            start_on_levels(env, state.terrain_levels)
         env.seed(args.seed + model.num_timesteps)  # reproducible from this checkpoint ...
         model._last_obs = None  # ... from a reset: SB3 would go on from the observation saved with the model
         if args.n_timesteps is None:  # the rest of the preset's budget

@@ -14,11 +14,20 @@ import numpy as np
 import pytest
 import torch as th
 import yaml
+from stable_baselines3.common.vec_env import VecNormalize
 
+import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo.checkpoints import RunState, restore_random_states
+from sb3_huri.zoo.checkpoints import (
+    RunCheckpoint,
+    RunState,
+    restore_random_states,
+    start_on_levels,
+    terrain_levels,
+)
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
 from zerith_gym.callbacks import RandomizationCurriculum
+from zerith_gym.terrain_levels import LevelRule
 
 ROOT = Path(__file__).resolve().parent.parent
 TRAIN = [sys.executable, str(ROOT / "examples" / "train_zerith.py")]
@@ -108,8 +117,6 @@ def test_random_states_come_back_from_a_checkpoint(tmp_path):
 @pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
 def test_a_resumed_curriculum_goes_on_from_its_stage():
     """The first rollout of a resumed run trains at the stage the run had reached, not at the schedule's."""
-    import zerith_gym
-
     env = zerith_gym.make_vec_env(2, seed=0, scenario="robust", workers=0)
     model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
     model.num_timesteps = 900  # the schedule would allow stage 3 of 4
@@ -121,6 +128,48 @@ def test_a_resumed_curriculum_goes_on_from_its_stage():
     env.close()
 
 
+def test_terrain_levels_are_read_from_a_wrapped_env_and_placed_again():
+    env = VecNormalize(zerith_gym.make_vec_env(6, seed=0, scenario="terrain", command=(0.8, 0, 0), workers=0))
+    env.reset()
+    env.set_level_rule(LevelRule())
+    saved = [9, 4, 7, 0, 9, 5]
+    start_on_levels(env, saved)
+    env.reset()
+    env.step(np.zeros((6, 12)))
+    assert terrain_levels(env) == saved
+    columns = [data.qpos[1] for data in env.unwrapped.robots.sim.datas]  # kind columns lie along y
+    assert columns[0] < columns[1] < columns[2] and np.allclose(columns[:3], columns[3:], atol=0.5)
+    with pytest.raises(ValueError, match="5 terrain levels saved, but the env has 6 robots"):
+        start_on_levels(env, saved[:5])
+    env.close()
+    plane = zerith_gym.make_vec_env(2, seed=0, workers=0)
+    assert terrain_levels(plane) is None  # one tile: nothing to restore
+    plane.close()
+
+
+@pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
+def test_a_resumed_terrain_run_starts_its_robots_on_their_saved_levels(tmp_path):
+    """`--resume` of a run on tiles: the terrain curriculum goes on from each robot's level."""
+    presets = yaml.safe_load((ROOT / "hyperparams" / "huri_terrain.yml").read_text())
+    preset = presets["Zerith1-v0"]
+    preset.update(n_envs=6, n_steps=8, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
+    preset["n_timesteps"] = 48
+    path = tmp_path / "terrain.yml"
+    path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
+    _train("-conf", str(path), "-f", str(tmp_path), "--checkpoint-freq", "48")
+    run = tmp_path / "huri" / "Zerith1-v0_1"
+    first = RunState.read(run)
+    assert first.terrain_levels == [0, 0, 0, 1, 1, 1]  # the start levels: 3 kinds, robots 3-5 a level up
+    state_file = run / "Zerith1-v0" / "state.json"
+    planted = [9, 8, 9, 8, 9, 8]  # as if the curriculum had taken every robot near the top
+    state_file.write_text(json.dumps({**json.loads(state_file.read_text()), "terrain_levels": planted}))
+    _train("--resume", str(run), "-n", "48", "--checkpoint-freq", "48")
+    resumed = RunState.read(run)
+    assert resumed.timesteps == 96 and len(resumed.terrain_levels) == 6
+    moved = np.abs(np.subtract(resumed.terrain_levels, planted))
+    assert moved.max() <= 1  # at most one episode ended in 8 steps; without the levels they would be 0-1
+
+
 def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):
     result = subprocess.run([*TRAIN, "--resume", str(tmp_path)], capture_output=True, text=True, timeout=120)
     assert result.returncode != 0 and "no Zerith1-v0.zip there" in result.stderr
@@ -129,9 +178,6 @@ def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):
 @pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
 def test_a_stop_request_ends_training_at_the_next_step_with_a_checkpoint(tmp_path):
     """What `kill` (SIGTERM) does to `examples/train_zerith.py`: the run stops and saves its newest state."""
-    import zerith_gym
-    from sb3_huri.zoo.checkpoints import RunCheckpoint
-
     env = zerith_gym.make_vec_env(2, seed=0, workers=0)
     model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
     checkpoint = RunCheckpoint(tmp_path / "run", {"n_envs": 2}, {"seed": 0}, every_steps=10_000)

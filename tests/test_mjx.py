@@ -344,3 +344,12 @@ def test_bad_backend_options_get_clear_errors():
         zerith_gym.make_vec_env(2, backend="cpu", solver_iterations=4)
     with pytest.raises(ValueError, match="solver iterations must be a positive integer"):
         zerith_gym.make_vec_env(2, backend="mjx", solver_iterations=0)
+
+
+def test_mjx_robots_keep_their_starting_tiles():
+    """A resumed terrain run asks for each robot's tile; MJX can only give the one it started on."""
+    env = zerith_gym.make_vec_env(6, seed=0, backend="mjx", scenario="terrain")
+    env.set_options({"tile": (9, 0)})
+    with pytest.raises(ValueError, match=r"robot 0's is \(0, 0\), not \(9, 0\)"):
+        env.reset()
+    env.close()

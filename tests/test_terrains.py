@@ -128,6 +128,32 @@ def test_a_single_env_starts_on_the_tile_its_reset_asks_for() -> None:
     single.close()
 
 
+@pytest.mark.parametrize("workers", [0, 1])
+def test_a_vec_env_starts_robots_on_the_tiles_its_options_ask_for(workers: int) -> None:
+    """SB3's `set_options` with the single env's "tile" option, for some robots, in any worker's slice."""
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=TILE_KINDS, start_levels=1, **SMALL))
+    env = zerith_gym.make_vec_env(12, seed=0, scenario=scenario, workers=workers)
+    asked = {1: (2, 3), 7: (1, 0), 11: (2, 2)}  # robot 11 is in the last worker's slice
+    env.set_options([{"tile": asked[i]} if i in asked else {} for i in range(12)])
+    env.reset()
+    env.step(np.zeros((12, 12)))
+    expected = np.zeros(12, dtype=int)
+    expected[list(asked)] = [level for level, _ in asked.values()]
+    np.testing.assert_array_equal(env.terrain_levels, expected)
+    if workers == 0:
+        base = np.array([data.qpos[:2] for data in env.robots.sim.datas])
+        centres = scenario.terrain.tiles.tile_centres(*np.array(list(asked.values())).T)
+        assert np.abs(base[list(asked)] - centres).max() < scenario.terrain.spawn_jitter + 0.05
+    env.reset()  # the options were for one reset; the robots keep their tiles (no curriculum moves them)
+    env.step(np.zeros((12, 12)))
+    np.testing.assert_array_equal(env.terrain_levels, expected)
+    for bad in ((3, 0), (0, 4), "a"):
+        env.set_options({"tile": bad})
+        with pytest.raises(ValueError, match="tile must be"):
+            env.reset()
+    env.close()
+
+
 # ------------------------------------------------------------------------------------- curriculum
 def test_level_moves_follow_the_rule() -> None:
     levels = np.array([0, 1, 2, 2, 1, 0, 1])

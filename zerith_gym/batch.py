@@ -68,12 +68,18 @@ class ZerithBatch:
             self.task.rngs[i] = rng
 
     def reset(
-        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+        self,
+        ids: np.ndarray,
+        commands: Mapping[int, np.ndarray] | None = None,
+        tiles: Mapping[int, tuple[int, int]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Start new episodes of robots `ids`; `commands` fixes some robots' commands for the episode.
+        """Start new episodes of robots `ids`; `commands` fixes some robots' commands for the episode, `tiles`
+        the (level, kind column) some start on (`TerrainLevels.place`; a curriculum moves them on from there).
 
         Returns their policy and critic observations.
         """
+        for i, tile in (tiles or {}).items():
+            self.task.tiles.place(i, tile)
         domain, qpos = self.task.reset(ids)
         for i, command in (commands or {}).items():
             self.task.set_command(np.array([i]), command)

@@ -41,10 +41,13 @@ class Robots(Protocol):
         """Random generators for the next resets (robot index -> generator)."""
 
     def reset(
-        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+        self,
+        ids: np.ndarray,
+        commands: Mapping[int, np.ndarray] | None = None,
+        tiles: Mapping[int, tuple[int, int]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """New episodes of robots `ids` (`commands` fixes some robots' commands); their policy and critic
-        observations."""
+        """New episodes of robots `ids` (`commands` fixes some robots' commands, `tiles` the (level, kind
+        column) some start on, on a tile terrain); their policy and critic observations."""
 
     @property
     def commands(self) -> np.ndarray:

@@ -53,6 +53,24 @@ def next_levels(
     return np.clip(levels + up.astype(int) - (down & ~up).astype(int), 0, top_level)
 
 
+def check_tile(spec: TerrainSpec, tile: object) -> tuple[int, int]:
+    """`tile` as (level, kind column) of `spec`'s grid; ValueError unless it names one (a terrain without
+    tiles has one: (0, 0))."""
+    levels, columns = spec.num_levels, spec.num_columns
+    try:
+        level, column = tile  # type: ignore[misc]
+    except (TypeError, ValueError):
+        level = column = None
+    whole = all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in (level, column))
+    if not (whole and 0 <= level < levels and 0 <= column < columns):  # type: ignore[operator]
+        kinds = spec.tiles.kinds if spec.tiles is not None else (spec.kind,)
+        raise ValueError(
+            f"tile must be (level, kind column) with level in [0, {levels - 1}] and column in "
+            f"[0, {columns - 1}] (kinds {', '.join(kinds)}), got {tile!r}"
+        )
+    return int(level), int(column)  # type: ignore[arg-type]
+
+
 class TerrainLevels:
     """The tiles of a batch of robots (global indices `robots`) and what the curriculum needs to move them.
 
@@ -87,21 +105,8 @@ class TerrainLevels:
 
     def place(self, index: int, tile: object) -> None:
         """Start robot `index` on `tile` (level, kind column) from its next reset, its last episode unjudged;
-        a curriculum moves it on from there. ValueError unless the tile is on the grid."""
-        levels, columns = self.spec.num_levels, self.spec.num_columns
-        try:
-            level, column = tile  # type: ignore[misc]
-        except (TypeError, ValueError):
-            level = column = None
-        whole = all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in (level, column))
-        valid = whole and 0 <= level < levels and 0 <= column < columns  # type: ignore[operator]
-        if not valid:
-            kinds = self.spec.tiles.kinds if self.spec.tiles is not None else (self.spec.kind,)
-            raise ValueError(
-                f"tile must be (level, kind column) with level in [0, {levels - 1}] and column in "
-                f"[0, {columns - 1}] (kinds {', '.join(kinds)}), got {tile!r}"
-            )
-        self.levels[index], self.columns[index] = level, column
+        a curriculum moves it on from there. ValueError unless the tile is on the grid (`check_tile`)."""
+        self.levels[index], self.columns[index] = check_tile(self.spec, tile)
         self.ended[index] = False
 
     def spawn_points(self, ids: np.ndarray) -> np.ndarray:

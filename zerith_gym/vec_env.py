@@ -16,7 +16,10 @@ Semantics follow SB3's `DummyVecEnv` over `Monitor`-wrapped single envs: automat
 `info["terminal_observation"]` and `info["TimeLimit.truncated"]`, `info["episode"]` (return, length, time)
 as `Monitor` writes it, so SB3's `ep_rew_mean` logging works without a wrapper; `info["reward_terms"]`
 every step and `info["episode_terms"]` at episode ends. Attributes and methods are those of the VecEnv,
-shared by all robots.
+shared by all robots. Reset options (SB3's `set_options`, per robot or for all) are the single env's:
+`{"command": (vx, vy, yaw rate)}` fixes a robot's command for the episode, and on a tile terrain
+`{"tile": (level, kind column)}` starts it on that tile (a resumed terrain curriculum places its robots
+with it).
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from zerith_gym.options import (
 )
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.terrain_levels import LevelRule, check_tile
 from zerith_gym.workers import WorkerPool, default_workers
 
 SIMULATION_BACKENDS = ("cpu", "mjx")
@@ -120,10 +123,14 @@ class ZerithVecEnv(VecEnv):
     # ------------------------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
         """Reset every robot, with the seeds of `seed()` and options of `set_options()` if given."""
-        commands = {i: reset_command(options) for i, options in enumerate(self._options) if options}
+        given = {i: options for i, options in enumerate(self._options) if options}
+        commands = {i: reset_command(options, also_valid=("tile",)) for i, options in given.items()}
+        commands = {i: command for i, command in commands.items() if command is not None}
+        terrain = self.scenario.terrain
+        tiles = {i: check_tile(terrain, options["tile"]) for i, options in given.items() if "tile" in options}
         seeds = {i: seeding.np_random(seed)[0] for i, seed in enumerate(self._seeds) if seed is not None}
         self.robots.seed(seeds)
-        policy, critic = self.robots.reset(np.arange(self.num_envs), commands)
+        policy, critic = self.robots.reset(np.arange(self.num_envs), commands, tiles)
         self.reset_infos = [{"command": row} for row in self.robots.commands.copy()]
         self._returns[:] = 0.0
         self._lengths[:] = 0

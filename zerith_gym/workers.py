@@ -160,9 +160,9 @@ def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, 
     if command == "level rule":
         batch.set_level_rule(payload)
         return True
-    ids, seeds, commands = payload  # reset: robot indices of this slice, counted from 0
+    ids, seeds, commands, tiles = payload  # reset: robot indices of this slice, counted from 0
     batch.seed(seeds)
-    policy, critic = batch.reset(ids, commands)
+    policy, critic = batch.reset(ids, commands, tiles)
     shared["policy_obs"][start + ids] = policy
     shared["critic_obs"][start + ids] = critic
     shared["next_command"][mine] = batch.commands
@@ -244,19 +244,25 @@ class WorkerPool:
         self._seeds.update(seeds)
 
     def reset(
-        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+        self,
+        ids: np.ndarray,
+        commands: Mapping[int, np.ndarray] | None = None,
+        tiles: Mapping[int, tuple[int, int]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Start new episodes of robots `ids` (each in its slice); returns their observations."""
+        """Start new episodes of robots `ids` (each in its slice, with its fixed command and start tile if
+        given; see `ZerithBatch.reset`); returns their observations."""
         ids = np.asarray(ids)
         seeds, self._seeds = self._seeds, {}
-        commands = dict(commands or {})
+        commands, tiles = dict(commands or {}), dict(tiles or {})
         messages = {}
         for k, (start, stop) in enumerate(self._rows):
             local = ids[(ids >= start) & (ids < stop)] - start
             local_seeds = {i - start: rng for i, rng in seeds.items() if start <= i < stop}
             if len(local) or local_seeds:
                 local_commands = {i - start: c for i, c in commands.items() if start <= i < stop}
-                messages[k] = pickle.dumps(("reset", (local, local_seeds, local_commands)))
+                local_tiles = {i - start: t for i, t in tiles.items() if start <= i < stop}
+                payload = (local, local_seeds, local_commands, local_tiles)
+                messages[k] = pickle.dumps(("reset", payload))
         self._run(messages, "resetting")
         return self._shared["policy_obs"][ids].copy(), self._shared["critic_obs"][ids].copy()
 

@@ -2,17 +2,19 @@
 
 A run folder in RL Zoo's layout (``sb3_huri.zoo.runs``) gets, besides the model and its normalizer:
 
-- ``<env_id>/state.json``: steps, the curriculum's stage, and one entry per training session (when, how many
-  steps, wall time, hardware), so a run's cost adds up honestly across sessions;
+- ``<env_id>/state.json``: steps, the curriculum's stage, on a tile terrain each robot's terrain level, and
+  one entry per training session (when, how many steps, wall time, hardware), so a run's cost adds up
+  honestly across sessions;
 - ``<env_id>/rng.pt``: the random states of torch, numpy and Python at the checkpoint;
 - ``curve.csv``: one row per rollout (``sb3_huri.zoo.curve``: steps, cumulative wall time, episode length and
   return, fall rate, curriculum scale, and the previous update's KL, clip fraction, explained variance,
   action noise and learning rates), written by ``CurveWriter``, which the experiment grid's runs use too.
 
 ``RunCheckpoint`` writes them every ``every_steps`` env steps and when training ends; ``resume_state`` reads
-them back. A resumed run restores the model, normalizer, random states and curriculum stage; its robots are
-reseeded from the run's seed and step count, so resuming from a checkpoint is reproducible, though not
-the same draws as a run that was never interrupted.
+them back. A resumed run restores the model, normalizer, random states, curriculum stage and terrain levels
+(`start_on_levels`); its robots are reseeded from the run's seed and step count, so resuming from a
+checkpoint is reproducible, though not the same draws as a run that was never interrupted. Its episodes
+start afresh: an episode cut by the checkpoint moves no level.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from typing import Any
 import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, trim_curve
 from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
@@ -70,6 +73,8 @@ class RunState:
 
     timesteps: int = 0
     curriculum_stage: int | None = None
+    terrain_levels: list[int] | None = None
+    """On a tile terrain, the level each robot walked on in the last step (`terrain_levels`)."""
     wall_s: float = 0.0
     sessions: list[dict[str, Any]] = field(default_factory=list)
 
@@ -78,6 +83,26 @@ class RunState:
         """The run's state, or a new one if the run has none yet."""
         path = Path(run) / env_id / "state.json"
         return RunState(**json.loads(path.read_text())) if path.is_file() else RunState()
+
+
+def terrain_levels(env: VecEnv) -> list[int] | None:
+    """The terrain level (tile row) each robot of `env` walked on in its last step, if `env` is (or wraps) a
+    `ZerithVecEnv` on a tile terrain; None otherwise (nothing to restore)."""
+    base = env.unwrapped
+    scenario = getattr(base, "scenario", None)
+    if getattr(scenario, "terrain", None) is None or scenario.terrain.tiles is None:
+        return None
+    return [int(level) for level in getattr(base, "terrain_levels", [])] or None
+
+
+def start_on_levels(env: VecEnv, levels: list[int]) -> None:
+    """Start `env`'s robots on `levels` at its next reset, each in its own kind column (robot i in column
+    ``i % columns``, as `zerith_gym.terrain_levels` places them); ValueError if `levels` is for another
+    number of robots."""
+    if len(levels) != env.num_envs:
+        raise ValueError(f"{len(levels)} terrain levels saved, but the env has {env.num_envs} robots")
+    columns = env.unwrapped.scenario.terrain.num_columns
+    env.set_options([{"tile": (level, i % columns)} for i, level in enumerate(levels)])
 
 
 def hardware() -> str:
@@ -219,6 +244,7 @@ class RunCheckpoint(CurveWriter):
         state = RunState(
             timesteps=self.num_timesteps,
             curriculum_stage=getattr(self.curriculum, "stage", None),
+            terrain_levels=terrain_levels(self.training_env),
             wall_s=round(wall, 1),
             sessions=self.state.sessions,
         )

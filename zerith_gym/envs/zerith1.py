@@ -106,10 +106,10 @@ class Zerith1Env(gym.Env):
         super().reset(seed=seed)
         command = reset_command(options, also_valid=("tile",))
         tile = (options or {}).get("tile")
-        if tile is not None:
-            self.robots.task.tiles.place(0, tile)
         self.robots.seed({0: self.np_random})
-        policy, critic = self.robots.reset(_ROBOT, None if command is None else {0: command})
+        policy, critic = self.robots.reset(
+            _ROBOT, None if command is None else {0: command}, None if tile is None else {0: tile}
+        )
         self._needs_reset = False
         self._episode_terms[:] = 0.0
         observation = format_observation(self.obs_mode, policy[0], critic[0])

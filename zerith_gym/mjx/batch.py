@@ -78,6 +78,7 @@ class MjxBatch:
         )
         tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots))  # fixed: no curriculum on MJX
         self._spawn, self._levels = tiles.spawn_points(np.arange(num_robots)), tiles.levels
+        self._columns = tiles.columns
         self.set_scenario(self.scenario)
         self._reset = jax.jit(self._start)
         self._step = jax.jit(self._step_all)
@@ -106,10 +107,21 @@ class MjxBatch:
             self._seed = int(seeds[min(seeds)].integers(2**63))
 
     def reset(
-        self, ids: np.ndarray, commands: Mapping[int, np.ndarray] | None = None
+        self,
+        ids: np.ndarray,
+        commands: Mapping[int, np.ndarray] | None = None,
+        tiles: Mapping[int, tuple[int, int]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Start new episodes of every robot (`ids` must be all of them); `commands` fixes some robots'
-        commands for the episode. Returns their policy and critic observations."""
+        commands for the episode. Returns their policy and critic observations. Each robot keeps its
+        starting tile: `tiles` may only name those (ValueError otherwise)."""
+        for i, tile in (tiles or {}).items():
+            if tuple(tile) != (self._levels[i], self._columns[i]):
+                raise ValueError(
+                    f"the MJX backend keeps each robot on its starting tile (robot {i}'s is "
+                    f"{(int(self._levels[i]), int(self._columns[i]))}, not {tuple(tile)}): choosing tiles "
+                    "needs the cpu backend"
+                )
         if sorted(np.asarray(ids).tolist()) != list(range(self.num_robots)):
             raise ValueError(
                 "the MJX backend resets all robots together (ended episodes restart by themselves)"
