@@ -119,4 +119,5 @@ def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
     sentence = curve.trend_markdown(run, rows)
     assert "(200 steps)" in sentence and "over 3 rows" in sentence
     assert "table1_mean +0.100 +- 0.000" in sentence and "sudden-feet +0.100" in sentence
+    assert "vx_at_1.0 +0.100" in sentence
     assert curve.trend_markdown(run, rows[:3]) == ""  # two rows since full scale: no trend yet
