@@ -14,7 +14,8 @@ A run folder in RL Zoo's layout (``sb3_huri.zoo.runs``) gets, besides the model 
 them back. A resumed run restores the model, normalizer, random states, curriculum stage and terrain levels
 (`start_on_levels`); its robots are reseeded from the run's seed and step count, so resuming from a
 checkpoint is reproducible, though not the same draws as a run that was never interrupted. Its episodes
-start afresh: an episode cut by the checkpoint moves no level.
+start afresh: an episode cut by the checkpoint moves no level, and a robot whose episode ended in the
+checkpoint's very step goes on from the level it walked on.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import os
 import platform
 import random
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -95,14 +97,20 @@ def terrain_levels(env: VecEnv) -> list[int] | None:
     return [int(level) for level in getattr(base, "terrain_levels", [])] or None
 
 
-def start_on_levels(env: VecEnv, levels: list[int]) -> None:
+def start_on_levels(env: VecEnv, levels: list[int]) -> bool:
     """Start `env`'s robots on `levels` at its next reset, each in its own kind column (robot i in column
-    ``i % columns``, as `zerith_gym.terrain_levels` places them); ValueError if `levels` is for another
-    number of robots."""
+    ``i % columns``, as `zerith_gym.terrain_levels` places them). With another number of robots than
+    `levels` has, a warning, and the robots start from the terrain's start levels (False)."""
     if len(levels) != env.num_envs:
-        raise ValueError(f"{len(levels)} terrain levels saved, but the env has {env.num_envs} robots")
+        warnings.warn(
+            f"{len(levels)} terrain levels saved, but the env has {env.num_envs} robots: they start from the "
+            "terrain's start levels",
+            stacklevel=2,
+        )
+        return False
     columns = env.unwrapped.scenario.terrain.num_columns
     env.set_options([{"tile": (level, i % columns)} for i, level in enumerate(levels)])
+    return True
 
 
 def hardware() -> str:
@@ -239,12 +247,14 @@ class RunCheckpoint(CurveWriter):
     def save(self) -> None:
         """Model, normalizer, preset, arguments, state and random states, replacing the previous ones."""
         wall = self.wall_s
+        stepped = self.num_timesteps > self._session.get("from_timesteps", self.num_timesteps)
         save_run(self.model, self.run, self.preset, self.run_args, self.env_id)
         self._session.update(to_timesteps=self.num_timesteps, wall_s=round(time.time() - self._began, 1))
         state = RunState(
             timesteps=self.num_timesteps,
             curriculum_stage=getattr(self.curriculum, "stage", None),
-            terrain_levels=terrain_levels(self.training_env),
+            # Before this session's first step the env has not reported its robots' levels yet.
+            terrain_levels=terrain_levels(self.training_env) if stepped else self.state.terrain_levels,
             wall_s=round(wall, 1),
             sessions=self.state.sessions,
         )
