@@ -7,9 +7,11 @@ the mean training episode length. The arms:
 
 - `shared`: one learning rate (3e-4) for actor and critic, no KL control (the walking preset's update);
 - `kl-shared`: `desired_kl` (default 0.01) adapting the one rate that actor and critic share;
-- `kl-actor`: `desired_kl` adapting the actor's rate only; the critic at its own 3e-4.
+- `kl-actor`: `desired_kl` adapting the actor's rate only; the critic at its own 3e-4;
+- `kl-actor-mirror`: `kl-actor` with a symmetry loss on the actor (`mirror_coef`, default 1; `--mirror-coef`).
 
     python benchmarks/bench_trust_region.py --steps 300000 --seeds 0 1 --output trust.jsonl
+    python benchmarks/bench_trust_region.py --arms kl-actor kl-actor-mirror --desired-kl 0.007 --mirror-coef 4
     python benchmarks/bench_trust_region.py --summary trust.jsonl     # the table of a finished file
 
 The summary gives, per arm, the mean over seeds of each run's median over its updates (and the runs'
@@ -37,17 +39,32 @@ ARMS: dict[str, dict] = {
     "shared": {"desired_kl": None, "critic_learning_rate": None, "learning_rate": 3e-4},
     "kl-shared": {"desired_kl": 0.01, "critic_learning_rate": None, "learning_rate": 3e-4},
     "kl-actor": {"desired_kl": 0.01, "critic_learning_rate": 3e-4, "learning_rate": 3e-4},
+    "kl-actor-mirror": {
+        "desired_kl": 0.01,
+        "critic_learning_rate": 3e-4,
+        "learning_rate": 3e-4,
+        "mirror_coef": 1,
+    },
 }
 
 
 def train_arm(
-    preset_file: Path, arm: str, seed: int, steps: int, scenario: str, scale: float, desired_kl: float
+    preset_file: Path,
+    arm: str,
+    seed: int,
+    steps: int,
+    scenario: str,
+    scale: float,
+    desired_kl: float,
+    mirror_coef: float | None = None,
 ) -> dict:
     """Train one arm from scratch for `steps` steps and return its per-update rows."""
     preset = read_preset(ENV_ID, preset_file)
     overrides = dict(ARMS[arm])
     if overrides["desired_kl"] is not None:
         overrides["desired_kl"] = desired_kl
+    if "mirror_coef" in overrides and mirror_coef is not None:
+        overrides["mirror_coef"] = mirror_coef
     env = preset_env(preset, seed=seed, scenario=scaled_scenario(get_scenario(scenario), scale))
     model = preset_model(preset, env, seed=seed, device="cpu", **overrides)
     recorder = UpdateRecorder()
@@ -58,6 +75,7 @@ def train_arm(
         "arm": arm,
         "seed": seed,
         "desired_kl": overrides["desired_kl"],
+        "mirror_coef": overrides.get("mirror_coef", 0.0),
         "steps": steps,
         "scenario": f"{scenario}x{scale:g}",
         "wall_s": round(time.time() - began, 1),
@@ -69,8 +87,12 @@ def summarize(results: list[dict]) -> str:
     """Per arm: mean over seeds of each run's median per update, with the runs' range; episode lengths."""
     header = "| arm | seeds | approx_kl | clip fraction | explained var. | std | ep len first -> last 10% |"
     lines = [header, "|---|---|---|---|---|---|---|"]
-    for arm, kl in dict.fromkeys((r["arm"], r.get("desired_kl")) for r in results):
-        runs = [r for r in results if (r["arm"], r.get("desired_kl")) == (arm, kl)]
+
+    def setting(r: dict) -> tuple:
+        return r["arm"], r.get("desired_kl"), r.get("mirror_coef") or 0.0
+
+    for arm, kl, mirror in dict.fromkeys(setting(r) for r in results):
+        runs = [r for r in results if setting(r) == (arm, kl, mirror)]
         cells = []
         for key in ("approx_kl", "clip_fraction", "explained_variance", "std"):
             medians = [float(np.median([row[key] for row in r["rows"]])) for r in runs]
@@ -82,7 +104,7 @@ def summarize(results: list[dict]) -> str:
             first.append(np.nanmean(lengths[:tenth]))
             last.append(np.nanmean(lengths[-tenth:]))
         seeds = ", ".join(str(r["seed"]) for r in runs)
-        name = arm if kl is None else f"{arm} {kl:g}"
+        name = (arm if kl is None else f"{arm} {kl:g}") + (f", mirror {mirror:g}" if mirror else "")
         lengths = f"{np.mean(first):.0f} -> {np.mean(last):.0f}"
         lines.append(f"| {name} | {seeds} | {' | '.join(cells)} | {lengths} |")
     return "\n".join(lines)
@@ -97,6 +119,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--desired-kl", type=float, default=0.01, help="KL target of the kl-* arms")
+    parser.add_argument("--mirror-coef", type=float, default=None, help="mirror_coef of the mirror arm")
     parser.add_argument("--scenario", default="train")
     parser.add_argument(
         "--scale", type=float, default=1.0, help="randomization and force scale of the scenario"
@@ -111,7 +134,8 @@ def main() -> None:
     results = []
     for seed in args.seeds:
         for arm in args.arms:
-            result = train_arm(args.preset, arm, seed, args.steps, args.scenario, args.scale, args.desired_kl)
+            settings = (args.scenario, args.scale, args.desired_kl, args.mirror_coef)
+            result = train_arm(args.preset, arm, seed, args.steps, *settings)
             results.append(result)
             print(json.dumps({k: v for k, v in result.items() if k != "rows"}), flush=True)
             if args.output:

@@ -49,6 +49,7 @@ from zerith_gym.options import (
 )
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
+from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule, check_tile
 from zerith_gym.workers import WorkerPool, default_workers
 
@@ -71,8 +72,12 @@ class ZerithVecEnv(VecEnv):
     docs/gpu.md): the same task code, one jitted step for all robots; `solver_iterations` and
     `ls_iterations` override the MJCF's constraint solver iterations (100 / 50) there. Its randomness
     comes from one JAX key seeded by `seed`, so its episodes differ from the CPU backend's draws.
-    Rendering is not supported (use the single env for videos).
+    Rendering is not supported (use the single env for videos). `policy_mirror` and `action_mirror` are
+    the single env's (`zerith_gym.symmetry`).
     """
+
+    policy_mirror = POLICY_MIRROR
+    action_mirror = ACTION_MIRROR
 
     def __init__(
         self,

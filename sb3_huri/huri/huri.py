@@ -25,10 +25,11 @@ from torch.nn import functional as F
 from sb3_huri.common.distortion import distortion_weights
 from sb3_huri.common.energy import energy_distance
 from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
+from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
 from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
 from sb3_huri.common.rnd import RNDTrainingCallback
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
-from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
+from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, resolve_variant
 
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
@@ -134,6 +135,10 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param rnd_kwargs: keyword arguments of the :class:`~sb3_huri.common.rnd.RandomNetworkDistillation`
         (``target_net_arch``, ``predictor_net_arch``, ``output_dim``, ``learning_rate``, ``normalize_error``,
         ...); ``None`` takes ``policy_kwargs["rnd_kwargs"]`` if given, else its defaults (the paper's)
+    :param mirror_coef: weight of a symmetry loss on the actor (``sb3_huri.common.mirror``): the squared
+        distance between its action mean on a mirrored observation and its mirrored action mean, for an env
+        that gives ``policy_mirror`` and ``action_mirror`` maps (Zerith1-v0: ``zerith_gym.symmetry``);
+        0 (default): none. The paper has no such loss
     :param stats_window_size: episodes averaged in the rollout logs
     :param tensorboard_log: tensorboard log folder (None: no logging)
     :param policy_kwargs: extra arguments of the policy (e.g. ``net_arch``, ``activation_fn``); may hold
@@ -188,6 +193,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         expectation_coef: float = 0.05,
         expectation_loss: str = "distorted",
         rnd_kwargs: dict[str, Any] | None = None,
+        mirror_coef: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -204,6 +210,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.sr_lambda = float(sr_lambda)
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
         self.expectation_loss = expectation_loss
+        self.mirror_coef = mirror_coef
+        self._mirrors: tuple[NormalizedMirror, NormalizedMirror] | None = None  # set by each update
         self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
         self.critic_learning_rate = critic_learning_rate
         self.kl_learning_rate: float | None = None  # set by the first update with desired_kl
@@ -387,6 +395,9 @@ class HuRiPPO(OnPolicyAlgorithm):
                 load_path_or_dict = {k: v for k, v in load_path_or_dict.items() if k != "policy.optimizer"}
                 exact_match = False
         super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_mirrors"]  # rebuilt by each update from the env
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts, variables = super()._get_torch_save_params()
@@ -578,6 +589,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                 self.kl_learning_rate or self.lr_schedule(self._current_progress_remaining)
             )
         clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
+        self._mirrors = self._mirror_maps() if self.mirror_coef > 0 else None
         logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
         actor_rates: list[float] = []  # the rate of each minibatch's step (desired_kl)
@@ -612,6 +624,8 @@ class HuRiPPO(OnPolicyAlgorithm):
             ("value", "value_loss"),
         ):
             self.logger.record(f"train/{key}", np.mean(logs[name]))
+        if self._mirrors is not None:
+            self.logger.record("train/mirror_loss", np.mean(logs["mirror"]))
         if self.distributional:
             self.logger.record("train/quantile_loss", np.mean(logs["quantile"]))
             self.logger.record("train/expectation_loss", np.mean(logs["expectation"]))
@@ -655,6 +669,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         value_loss = self._critic_loss(outputs, data, logs)
         entropy_loss = -th.mean(-log_prob) if entropy is None else -th.mean(entropy)
         loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * value_loss
+        if self._mirrors is not None:
+            observations = data.observations
+            actor_observations = observations[ACTOR_KEY] if isinstance(observations, dict) else observations
+            symmetry = mirror_loss(self.policy.actor_mean, actor_observations, *self._mirrors)
+            loss = loss + self.mirror_coef * symmetry
+            logs["mirror"].append(symmetry.item())
 
         logs["pg"].append(policy_loss.item())
         logs["value"].append(value_loss.item())
@@ -663,6 +683,34 @@ class HuRiPPO(OnPolicyAlgorithm):
         with th.no_grad():
             approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
         return loss, approx_kl_div
+
+    def _mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
+        """The env's mirror of the actor's observation, in the units the normalizer gives the actor (its
+        statistics now), and its mirror of the action; ValueError if the env has none."""
+        try:
+            observation, action = (
+                self.env.get_attr(name, [0])[0] for name in ("policy_mirror", "action_mirror")
+            )
+        except AttributeError as error:
+            raise ValueError(
+                "mirror_coef > 0 needs an env with `policy_mirror` and `action_mirror` maps of the actor's "
+                "observation and of the action (Zerith1-v0 has them: zerith_gym.symmetry)"
+            ) from error
+        is_dict = isinstance(self.observation_space, spaces.Dict)
+        if is_dict and ACTOR_KEY not in self.observation_space.spaces:
+            raise ValueError(f"mirror_coef > 0 needs the actor's own {ACTOR_KEY!r} observation entry")
+        mean = std = None
+        normalizer = self.get_vec_normalize_env()
+        if normalizer is not None and normalizer.norm_obs:
+            if not is_dict:
+                mean, std = normalizer.obs_rms.mean, np.sqrt(normalizer.obs_rms.var + normalizer.epsilon)
+            elif ACTOR_KEY in normalizer.norm_obs_keys:
+                stats = normalizer.obs_rms[ACTOR_KEY]
+                mean, std = stats.mean, np.sqrt(stats.var + normalizer.epsilon)
+        return (
+            NormalizedMirror.build(observation, mean, std, self.device),
+            NormalizedMirror.build(action, device=self.device),
+        )
 
     def _critic_loss(
         self, outputs: th.Tensor, data: HuRiRolloutBufferSamples, logs: dict[str, list]
@@ -770,6 +818,7 @@ _RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "cvar_alpha": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
     "quantile_coef": (lambda v: v >= 0.0, ">= 0"),
     "expectation_coef": (lambda v: v >= 0.0, ">= 0"),
+    "mirror_coef": (lambda v: v >= 0.0, ">= 0"),
     "expectation_loss": (lambda v: v in EXPECTATION_LOSSES, f"one of {EXPECTATION_LOSSES}"),
     "desired_kl": (lambda v: v is None or v > 0.0, "None or > 0"),
     "critic_learning_rate": (

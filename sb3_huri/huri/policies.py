@@ -183,6 +183,11 @@ class HuRiPolicy(ActorCriticPolicy):
         )
         return data
 
+    def actor_mean(self, actor_observations: th.Tensor) -> th.Tensor:
+        """The action mean for the actor's own inputs (batch, n): the ``"policy"`` entry of a ``Dict``
+        observation, the whole vector of a ``Box`` one (e.g. to compare it on mirrored inputs)."""
+        return self.action_net(self.mlp_extractor.policy_net(actor_observations))
+
     def critic_features(self, obs: PyTorchObs) -> th.Tensor:
         """The flat critic input (every observation entry), which RND measures the novelty of."""
         return BasePolicy.extract_features(self, obs, self.vf_features_extractor)

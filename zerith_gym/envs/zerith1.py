@@ -20,6 +20,7 @@ from zerith_gym.options import (
 )
 from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
+from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule
 
 _ROBOT = np.array([0])
@@ -77,9 +78,15 @@ class Zerith1Env(gym.Env):
     `external_force` (N, world frame, on each body of the scenario's target group), `command`,
     `reward_terms` (name -> weighted value), `terrain_level` (the tile row walked on: 0 unless the
     scenario's terrain has tiles); at an episode's end also `episode_terms`.
+
+    ## Symmetry
+    `policy_mirror` and `action_mirror` reflect the actor's observation and an action left to right
+    (`zerith_gym.symmetry`), for a symmetry loss (`HuRiPPO(mirror_coef=...)`).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": round(1.0 / robot.CONTROL_DT)}
+    policy_mirror = POLICY_MIRROR
+    action_mirror = ACTION_MIRROR
 
     def __init__(
         self, render_mode: str | None = None, width: int = 640, height: int = 480, **options: Any
