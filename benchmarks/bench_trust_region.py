@@ -15,7 +15,8 @@ the mean training episode length. The arms:
     python benchmarks/bench_trust_region.py --summary trust.jsonl     # the table of a finished file
 
 The summary gives, per arm, the mean over seeds of each run's median over its updates (and the runs'
-range), and the mean episode length over the first and last 10% of each run.
+range), the mean episode length over the first and last 10% of each run, the mean return over the last
+10%, and the actor's asymmetry at the end (`sb3_huri.common.mirror.mirror_loss` on the last rollout).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch as th
 
+from sb3_huri.common.mirror import mirror_loss
 from sb3_huri.zoo import read_preset
 from sb3_huri.zoo.checkpoints import UpdateRecorder
 from sb3_huri.zoo.presets import preset_env, preset_model
@@ -70,6 +72,11 @@ def train_arm(
     recorder = UpdateRecorder()
     began = time.time()
     model.learn(steps, callback=recorder)
+    actor_obs = model.rollout_buffer.observations["policy"].reshape(
+        -1, model.rollout_buffer.obs_shape["policy"][0]
+    )
+    with th.no_grad():  # how far the actor is from acting symmetrically, on the last rollout's observations
+        asymmetry = mirror_loss(model.policy.actor_mean, th.as_tensor(actor_obs), *model.mirror_maps()).item()
     env.close()
     return {
         "arm": arm,
@@ -79,14 +86,18 @@ def train_arm(
         "steps": steps,
         "scenario": f"{scenario}x{scale:g}",
         "wall_s": round(time.time() - began, 1),
+        "asymmetry": asymmetry,
         "rows": recorder.rows,
     }
 
 
 def summarize(results: list[dict]) -> str:
     """Per arm: mean over seeds of each run's median per update, with the runs' range; episode lengths."""
-    header = "| arm | seeds | approx_kl | clip fraction | explained var. | std | ep len first -> last 10% |"
-    lines = [header, "|---|---|---|---|---|---|---|"]
+    header = (
+        "| arm | seeds | approx_kl | clip fraction | explained var. | std | ep len first -> last 10% "
+        "| return, last 10% | asymmetry at the end |"
+    )
+    lines = [header, "|---|---|---|---|---|---|---|---|---|"]
 
     def setting(r: dict) -> tuple:
         return r["arm"], r.get("desired_kl"), r.get("mirror_coef") or 0.0
@@ -97,16 +108,22 @@ def summarize(results: list[dict]) -> str:
         for key in ("approx_kl", "clip_fraction", "explained_variance", "std"):
             medians = [float(np.median([row[key] for row in r["rows"]])) for r in runs]
             cells.append(f"{np.mean(medians):.3g} ({min(medians):.3g}-{max(medians):.3g})")
-        first, last = [], []
+        first, last, returns = [], [], []
         for r in runs:
             lengths = np.array([row["ep_len"] for row in r["rows"]])
             tenth = max(len(lengths) // 10, 1)
             first.append(np.nanmean(lengths[:tenth]))
             last.append(np.nanmean(lengths[-tenth:]))
+            returns.append(np.nanmean([row["ep_return"] for row in r["rows"]][-tenth:]))
+        asymmetry = [r["asymmetry"] for r in runs if "asymmetry" in r]
         seeds = ", ".join(str(r["seed"]) for r in runs)
         name = (arm if kl is None else f"{arm} {kl:g}") + (f", mirror {mirror:g}" if mirror else "")
-        lengths = f"{np.mean(first):.0f} -> {np.mean(last):.0f}"
-        lines.append(f"| {name} | {seeds} | {' | '.join(cells)} | {lengths} |")
+        lengths = f"{np.mean(first):.0f} -> {np.mean(last):.0f} ({min(last):.0f}-{max(last):.0f})"
+        returns_cell = f"{np.mean(returns):.1f} ({min(returns):.1f}-{max(returns):.1f})"
+        asymmetry_cell = f"{np.mean(asymmetry):.2g}" if asymmetry else "-"
+        lines.append(
+            f"| {name} | {seeds} | {' | '.join(cells)} | {lengths} | {returns_cell} | {asymmetry_cell} |"
+        )
     return "\n".join(lines)
 
 

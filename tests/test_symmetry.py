@@ -83,7 +83,7 @@ def _asymmetry(mirror_coef: float) -> float:
     model.learn(8 * 16 * 6)
     obs = th.as_tensor(model.rollout_buffer.observations["policy"].reshape(-1, POLICY_SIZE))
     with th.no_grad():
-        value = mirror_loss(model.policy.actor_mean, obs, *model._mirror_maps()).item()
+        value = mirror_loss(model.policy.actor_mean, obs, *model.mirror_maps()).item()
     env.close()
     return value
 

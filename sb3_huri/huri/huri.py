@@ -589,7 +589,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                 self.kl_learning_rate or self.lr_schedule(self._current_progress_remaining)
             )
         clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
-        self._mirrors = self._mirror_maps() if self.mirror_coef > 0 else None
+        self._mirrors = self.mirror_maps() if self.mirror_coef > 0 else None
         logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
         actor_rates: list[float] = []  # the rate of each minibatch's step (desired_kl)
@@ -684,7 +684,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
         return loss, approx_kl_div
 
-    def _mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
+    def mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
         """The env's mirror of the actor's observation, in the units the normalizer gives the actor (its
         statistics now), and its mirror of the action; ValueError if the env has none."""
         try:
