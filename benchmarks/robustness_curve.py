@@ -183,21 +183,35 @@ def full_scale_step(run: Path) -> int | None:
     return None
 
 
+RECENT_STEPS = 50_000_000
+"""The window of the second trend the docs state: has the curve flattened lately?"""
+
+
+def _slopes(rows: list[dict[str, str]]) -> str:
+    steps = np.array([int(r["timesteps"]) for r in rows])
+    parts = []
+    for key in TREND_CASES:
+        slope, half = trend(steps, np.array([float(r[key]) for r in rows]))
+        parts.append(f"{key} {slope:+.3f} +- {half:.3f}")
+    return ", ".join(parts)
+
+
 def trend_markdown(run: Path, rows: list[dict[str, str]]) -> str:
-    """A sentence on how fast the curve rose since the curriculum reached full scale, or "" if too early."""
+    """How fast the curve rose since the curriculum reached full scale and over the last `RECENT_STEPS`
+    (when that window starts later and holds 3 rows), or "" if too early."""
     since = full_scale_step(run)
     later = [r for r in rows if since is not None and int(r["timesteps"]) >= since]
     if len(later) < 3:
         return ""
-    steps = np.array([int(r["timesteps"]) for r in later])
-    parts = []
-    for key in TREND_CASES:
-        slope, half = trend(steps, np.array([float(r[key]) for r in later]))
-        parts.append(f"{key} {slope:+.3f} +- {half:.3f}")
-    return (
+    text = (
         f"Since the curriculum reached full scale ({since:,} steps), per 10M steps (least-squares slope over "
-        f"{len(later)} rows, 95% t interval): " + ", ".join(parts) + "."
+        f"{len(later)} rows, 95% t interval): {_slopes(later)}."
     )
+    start = int(later[-1]["timesteps"]) - RECENT_STEPS
+    recent = [r for r in later if int(r["timesteps"]) >= start]
+    if start > int(later[0]["timesteps"]) and len(recent) >= 3:
+        text += f" Over the last {RECENT_STEPS / 1e6:.0f}M steps ({len(recent)} rows): {_slopes(recent)}."
+    return text
 
 
 def read_rows(run: Path) -> dict[int, dict[str, str]]:

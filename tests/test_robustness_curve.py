@@ -120,4 +120,11 @@ def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
     assert "(200 steps)" in sentence and "over 3 rows" in sentence
     assert "table1_mean +0.100 +- 0.000" in sentence and "sudden-feet +0.100" in sentence
     assert "vx_at_1.0 +0.100" in sentence
+    assert "Over the last" not in sentence  # the window would hold every row since full scale
     assert curve.trend_markdown(run, rows[:3]) == ""  # two rows since full scale: no trend yet
+    flat = [  # 0.1 per 10M steps up to 60M, then flat for the last 50M
+        {"timesteps": str(s), **dict.fromkeys(curve.TREND_CASES, str(min(s, 60_000_000) / 1e8))}
+        for s in range(20_000_000, 120_000_001, 10_000_000)
+    ]
+    sentence = curve.trend_markdown(run, flat)
+    assert "over 11 rows" in sentence and "Over the last 50M steps (6 rows): table1_mean +0.000" in sentence
