@@ -51,23 +51,25 @@ def _joint_mirror() -> SignedPermutation:
     return SignedPermutation(np.array(index), np.array(sign))
 
 
+BLOCK_SIGNS = {
+    "base_roll_pitch": (-1.0, 1.0),
+    "base_angular_velocity": (-1.0, 1.0, -1.0),
+    "clock_sin_cos": (-1.0, -1.0),  # half a period later
+    "command": (1.0, -1.0, -1.0),
+}
+"""The sign of each entry of the policy blocks that stay in place under the mirror."""
+JOINT_BLOCKS = ("joint_position_offset", "joint_velocity", "last_action")
+"""The policy blocks with one entry per joint, mirrored as the action is."""
+
+
 def _policy_mirror(joints: SignedPermutation) -> SignedPermutation:
+    """Every block of `POLICY_LAYOUT` by its rule (KeyError for a block without one)."""
     index, sign = np.arange(POLICY_SIZE), np.ones(POLICY_SIZE)
-    blocks = layout_slices(POLICY_LAYOUT)
-    block_signs = {
-        "base_roll_pitch": (-1.0, 1.0),
-        "base_angular_velocity": (-1.0, 1.0, -1.0),
-        "clock_sin_cos": (-1.0, -1.0),  # half a period later
-        "command": (1.0, -1.0, -1.0),
-    }
-    for name, signs in block_signs.items():
-        sign[blocks[name]] = signs
-    for name in ("joint_position_offset", "joint_velocity", "last_action"):
-        block = blocks[name]
-        index[block] = block.start + joints.index
-        sign[block] = joints.sign
-    if set(blocks) != {*block_signs, "joint_position_offset", "joint_velocity", "last_action"}:
-        raise RuntimeError("a policy observation block has no mirror rule")  # a new block must get one
+    for name, block in layout_slices(POLICY_LAYOUT).items():
+        if name in JOINT_BLOCKS:
+            index[block], sign[block] = block.start + joints.index, joints.sign
+        else:
+            sign[block] = BLOCK_SIGNS[name]
     return SignedPermutation(index, sign)
 
 

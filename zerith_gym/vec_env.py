@@ -128,11 +128,13 @@ class ZerithVecEnv(VecEnv):
     # ------------------------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
         """Reset every robot, with the seeds of `seed()` and options of `set_options()` if given."""
-        given = {i: options for i, options in enumerate(self._options) if options}
-        commands = {i: reset_command(options, also_valid=("tile",)) for i, options in given.items()}
-        commands = {i: command for i, command in commands.items() if command is not None}
-        terrain = self.scenario.terrain
-        tiles = {i: check_tile(terrain, options["tile"]) for i, options in given.items() if "tile" in options}
+        commands, tiles = {}, {}
+        for i, options in enumerate(self._options):
+            command = reset_command(options, also_valid=("tile",))
+            if command is not None:
+                commands[i] = command
+            if options and "tile" in options:
+                tiles[i] = check_tile(self.scenario.terrain, options["tile"])
         seeds = {i: seeding.np_random(seed)[0] for i, seed in enumerate(self._seeds) if seed is not None}
         self.robots.seed(seeds)
         policy, critic = self.robots.reset(np.arange(self.num_envs), commands, tiles)

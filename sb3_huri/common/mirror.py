@@ -10,6 +10,7 @@ units: ``normalize(mirror(x)) = scale * x_normalized[index] + shift`` (clipping 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -48,7 +49,10 @@ class NormalizedMirror(NamedTuple):
 
 
 def mirror_loss(
-    action_mean: Any, observations: th.Tensor, observation_mirror: NormalizedMirror, action_mirror: Any
+    action_mean: Callable[[th.Tensor], th.Tensor],
+    observations: th.Tensor,
+    observation_mirror: NormalizedMirror,
+    action_mirror: NormalizedMirror,
 ) -> th.Tensor:
     """Mean over the batch of the squared distance between the action mean on mirrored observations and
     the mirrored action mean; `action_mean` maps actor observations (batch, n) to action means."""
