@@ -3,6 +3,7 @@
     python examples/train_zerith.py                                   # HuRi, the Zerith1-v0 CPU preset
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run where it stopped
+    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_2 -params mirror_coef:4.0  # ... changed
     python examples/train_zerith.py -conf hyperparams/huri_robust.yml -f runs --max-wall-minutes 150
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
@@ -34,6 +35,7 @@ import argparse
 import signal
 import time
 from pathlib import Path
+from typing import Any
 
 import torch as th
 import yaml
@@ -43,13 +45,24 @@ from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import METHODS, next_run_folder, read_preset
 from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState, restore_random_states, start_on_levels
-from sb3_huri.zoo.presets import preset_env, preset_model
+from sb3_huri.zoo.presets import preset_env, preset_model, resume_overrides
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import get_scenario
 
 ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_PRESET = ROOT / "hyperparams" / "huri.yml"
+
+
+def parse_hyperparams(pairs: list[str]) -> dict[str, Any]:
+    """`KEY:VALUE` strings as a dict, each VALUE read as YAML; ValueError for a pair without a colon."""
+    parsed = {}
+    for pair in pairs:
+        key, colon, value = pair.partition(":")
+        if not colon or not key:
+            raise ValueError(f"-params takes KEY:VALUE pairs (e.g. mirror_coef:4.0), got {pair!r}")
+        parsed[key] = yaml.safe_load(value)
+    return parsed
 
 
 def main() -> None:
@@ -65,6 +78,15 @@ def main() -> None:
         type=Path,
         default=None,
         help="hyperparameter file (default: huri.yml, or a resumed run's)",
+    )
+    parser.add_argument(
+        "-params",
+        "--hyperparams",
+        nargs="+",
+        default=[],
+        metavar="KEY:VALUE",
+        help="replace preset entries, as rl_zoo3 train -params (VALUE read as YAML), e.g. mirror_coef:4.0; "
+        "a resumed model is loaded with them",
     )
     parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="override the preset's budget")
     parser.add_argument("--seed", type=int, default=None, help="default: 0, or a resumed run's")
@@ -107,8 +129,14 @@ def main() -> None:
         preset = yaml.safe_load((saved / "config.yml").read_text())
         saved_args = yaml.safe_load((saved / "args.yml").read_text())
         args.algo, args.seed = saved_args["algo"], saved_args["seed"] if args.seed is None else args.seed
+    saved_preset = dict(preset) if args.resume else {}
     if args.conf_file is not None or not args.resume:
         preset = read_preset(ENV_ID, args.conf_file or DEFAULT_PRESET)
+    try:
+        preset = {**preset, **parse_hyperparams(args.hyperparams)}
+        overrides = resume_overrides(saved_preset, preset) if args.resume else {}
+    except ValueError as error:
+        parser.error(str(error))
     args.seed = 0 if args.seed is None else args.seed
     budget = args.n_timesteps or int(preset["n_timesteps"])
     env_kwargs = dict(preset.get("env_kwargs") or {})
@@ -125,7 +153,9 @@ def main() -> None:
     )
     state = RunState.read(run) if args.resume else RunState()
     if args.resume:
-        model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log)
+        if overrides:
+            print(f"resuming with changed hyperparameters: {overrides}")
+        model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log, **overrides)
         if state.timesteps != model.num_timesteps:
             print(f"warning: {run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
         restore_random_states(run)

@@ -18,6 +18,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.zoo import read_preset
 from sb3_huri.zoo.checkpoints import (
     RunCheckpoint,
     RunState,
@@ -26,6 +27,7 @@ from sb3_huri.zoo.checkpoints import (
     terrain_levels,
 )
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
+from sb3_huri.zoo.presets import resume_overrides
 from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.terrain_levels import LevelRule
 
@@ -66,9 +68,11 @@ def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage
 
     with (run / "curve.csv").open("a") as file:  # a row that a stopped session wrote after its checkpoint
         file.write("320" + ",0" * (len(CURVE_COLUMNS) - 1) + "\n")
-    _train(
-        "--resume", str(run), "--checkpoint-freq", "128"
-    )  # the rest of the budget; the run's algo and seed
+    # the rest of the budget, the run's algo and seed; hyperparameters changed as `rl_zoo3 train -params`
+    _train("--resume", str(run), "--checkpoint-freq", "128", "-params", "mirror_coef:2.0", "desired_kl:0.01")
+    resumed = HuRiPPO.load(run / "Zerith1-v0.zip")
+    assert (resumed.mirror_coef, resumed.desired_kl, resumed.n_steps) == (2.0, 0.01, 16)
+    assert yaml.safe_load((run / "Zerith1-v0" / "config.yml").read_text())["mirror_coef"] == 2.0
     second = RunState.read(run)
     assert second.timesteps == 384 and len(second.sessions) == 2
     assert second.sessions[1]["from_timesteps"] == 256 and second.wall_s >= first.wall_s
@@ -170,6 +174,23 @@ def test_a_resumed_terrain_run_starts_its_robots_on_their_saved_levels(tmp_path)
     assert moved.max() <= 1  # at most one episode ended in 8 steps; without the levels they would be 0-1
     _train("--resume", str(run), "--checkpoint-freq", "48")  # the budget is spent: no step, the same levels
     assert RunState.read(run).terrain_levels == resumed.terrain_levels
+
+
+def test_a_resumed_run_takes_new_hyperparameters_but_keeps_its_networks(tmp_path):
+    saved = read_preset("Zerith1-v0", ROOT / "hyperparams" / "huri_robust.yml")
+    assert resume_overrides(saved, saved) == {}
+    changed = {**saved, "mirror_coef": 4.0, "desired_kl": 0.01, "n_envs": 8}
+    assert resume_overrides(saved, changed) == {"mirror_coef": 4.0, "desired_kl": 0.01}
+    wider = {**saved, "policy_kwargs": "dict(net_arch=[512, 256], activation_fn=nn.ELU, log_std_init=-2.0)"}
+    with pytest.raises(ValueError, match="keeps its networks: policy_kwargs"):
+        resume_overrides(saved, wider)
+    model = HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=16, policy_kwargs={"net_arch": [8]})
+    model.save(tmp_path / "model.zip")
+    assert HuRiPPO.load(tmp_path / "model.zip", mirror_coef=1.5).mirror_coef == 1.5
+    with pytest.raises(ValueError, match="mirror_coef must be >= 0, got -1"):
+        HuRiPPO.load(tmp_path / "model.zip", mirror_coef=-1.0)
+    result = subprocess.run([*TRAIN, "-params", "mirror_coef=4"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "KEY:VALUE pairs" in result.stderr
 
 
 def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):

@@ -684,6 +684,15 @@ class HuRiPPO(OnPolicyAlgorithm):
             approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
         return loss, approx_kl_div
 
+    @classmethod
+    def load(cls: type[SelfHuRiPPO], path: Any, env: GymEnv | None = None, **kwargs: Any) -> SelfHuRiPPO:
+        """SB3's ``load``. Hyperparameters passed in `kwargs` replace the saved ones (as in SB3, and as
+        ``rl_zoo3 train -i`` continues a trained agent with its preset's); they are checked as the
+        constructor checks them, and a ValueError names the first invalid one."""
+        model = super().load(path, env, **kwargs)
+        model._check_settings()
+        return model
+
     def mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
         """The env's mirror of the actor's observation, in the units the normalizer gives the actor (its
         statistics now), and its mirror of the action; ValueError if the env has none."""

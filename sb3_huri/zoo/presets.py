@@ -51,3 +51,23 @@ def preset_model(
         raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     kwargs = {**algorithm_kwargs(preset), **overrides}
     return HuRiPPO(preset["policy"], env, variant=METHODS[method], seed=seed, **kwargs)
+
+
+FIXED_BY_WEIGHTS = ("policy", "policy_kwargs", "n_quantiles")
+"""Preset entries a checkpoint's network weights fix: a resumed run cannot change them."""
+
+
+def resume_overrides(saved: dict[str, Any], preset: dict[str, Any]) -> dict[str, Any]:
+    """The algorithm hyperparameters `preset` sets differently from the `saved` preset a run trained with:
+    what its model is loaded with when it resumes under `preset` (as ``rl_zoo3 train -i`` continues a
+    trained agent with its preset's). Entries `preset` leaves out keep their saved values. ValueError if
+    a change touches the networks (`FIXED_BY_WEIGHTS`)."""
+    old, new = algorithm_kwargs(saved), algorithm_kwargs(preset)
+    fixed = [key for key in FIXED_BY_WEIGHTS if key in preset and saved.get(key) != preset[key]]
+    fixed = [key for key in fixed if key == "policy" or old.get(key) != new.get(key)]
+    if fixed:
+        raise ValueError(
+            f"a resumed run keeps its networks: {', '.join(fixed)} cannot change from the saved preset "
+            f"({', '.join(f'{key}={saved.get(key)!r}' for key in fixed)}); start a new run instead"
+        )
+    return {key: value for key, value in new.items() if key not in old or old[key] != value}

@@ -1,0 +1,50 @@
+"""benchmarks/impulse_envelope.py: one push where and when it is asked for, and Table 1's pushes counted."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sb3_huri.experiments.evaluation import evaluate
+from tests.test_trained_agents import load_script
+from zerith_gym.randomization import NOMINAL
+from zerith_gym.scenarios import SCENARIOS
+
+ACTION_SHAPE = (12,)
+
+
+@pytest.fixture(scope="module")
+def envelope():
+    return load_script("benchmarks/impulse_envelope.py")
+
+
+def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(envelope) -> None:
+    stand = envelope.Stand(ACTION_SHAPE)
+
+    def survive(force: float, after: int, step: int = 100) -> float:
+        scenario = envelope.push("centroid", force, math.pi / 2, step, test_ranges=False)
+        result = evaluate(stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=step + after, workers=0)
+        return result["survive"]
+
+    assert survive(20.0, after=100) == 1.0
+    assert survive(2000.0, after=100) == 0.0
+    # the push comes at its step, not before: an episode that ends before it survives the same push
+    assert survive(2000.0, after=100, step=150) == 0.0
+    scenario = envelope.push("centroid", 2000.0, math.pi / 2, 150, test_ranges=False)
+    assert (
+        evaluate(stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=140, workers=0)["survive"] == 1.0
+    )
+
+
+def test_table1_pushes_account_for_every_robot(envelope) -> None:
+    robots = 3
+    scenario = replace(SCENARIOS["sudden-hands"], randomization=NOMINAL)
+    counts = envelope.falls_per_push(envelope.Stand(ACTION_SHAPE), None, scenario, robots, 0)
+    standing, fell = counts[:, 0], counts[:, 1]
+    assert len(counts) == 9  # a push every 2 s from 2 s on, in 20 s
+    assert np.all(standing[1:] == standing[:-1] - fell[:-1])
+    assert standing[0] == robots  # the nominal robot stands until the first push
+    assert fell.sum() == robots  # and only holding its stance, it falls under Table 1's hand pushes
