@@ -63,8 +63,11 @@ def resume_overrides(saved: dict[str, Any], preset: dict[str, Any]) -> dict[str,
     trained agent with its preset's). Entries `preset` leaves out keep their saved values. ValueError if
     a change touches the networks (`FIXED_BY_WEIGHTS`)."""
     old, new = algorithm_kwargs(saved), algorithm_kwargs(preset)
-    fixed = [key for key in FIXED_BY_WEIGHTS if key in preset and saved.get(key) != preset[key]]
-    fixed = [key for key in fixed if key == "policy" or old.get(key) != new.get(key)]
+
+    def changes(key: str) -> bool:  # policy_kwargs compared as evaluated, not as written
+        return saved.get(key) != preset[key] if key == "policy" else old.get(key) != new.get(key)
+
+    fixed = [key for key in FIXED_BY_WEIGHTS if key in preset and changes(key)]
     if fixed:
         raise ValueError(
             f"a resumed run keeps its networks: {', '.join(fixed)} cannot change from the saved preset "
