@@ -262,14 +262,17 @@ def curve_markdown(run: Path) -> str:
     return "\n".join([*lines, "", sentence] if sentence else lines)
 
 
-def plot_curve(run: Path, path: Path) -> None:
+def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
-    mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis."""
+    mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis. Each run of
+    `forks` (a copy of `run` trained on from one of its checkpoints) adds its Table-1 mean from its first
+    row `run` does not have, joined to the row before."""
     from matplotlib.figure import Figure
 
     rows = list(read_rows(run).values())
     if not rows:
         raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
+    shared = {int(r["timesteps"]) for r in rows}
     steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
     figure = Figure(figsize=(8, 4.5), layout="constrained")
     axes = figure.add_subplot()
@@ -281,6 +284,15 @@ def plot_curve(run: Path, path: Path) -> None:
     bands = [wilson_interval(m, int(r["episodes"]) * cases) for m, r in zip(mean, rows, strict=True)]
     axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
     axes.plot(steps, mean, "k-", lw=2.5, label="Table-1 mean (95% band)")
+    for fork, color in zip(forks, ("tab:red", "tab:purple", "tab:olive"), strict=False):
+        fork_rows = list(read_rows(fork).items())
+        first = next((i for i, (s, _) in enumerate(fork_rows) if s not in shared), None)
+        if first is None:
+            raise ValueError(f"{fork} has no evaluated checkpoint beyond those of {run} (robustness.csv)")
+        own = fork_rows[max(first - 1, 0) :]
+        fork_steps = [s / 1e6 for s, _ in own]
+        axes.plot(fork_steps, [float(r["table1_mean"]) for _, r in own], "-", color=color, lw=2.5,
+                  label=f"{fork.name}: Table-1 mean")  # fmt: skip
     axes.set_xlabel("environment steps (millions)")
     axes.set_ylabel("survival rate (20-s episodes)")
     axes.set_ylim(-0.02, 1.02)
@@ -320,6 +332,13 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--docs", type=Path, default=None, help="also write the run's tables into this file")
     parser.add_argument("--plot", type=Path, default=None, help="also draw the curve into this image file")
+    parser.add_argument(
+        "--forks",
+        type=Path,
+        nargs="+",
+        default=[],
+        help="runs forked from this one: their Table-1 mean in the plot",
+    )
     args = parser.parse_args()
     th.set_num_threads(1)
     rows = read_rows(args.run)
@@ -342,7 +361,7 @@ def main() -> None:
     if args.docs is not None:
         update_docs(args.run, args.docs)
     if args.plot is not None:
-        plot_curve(args.run, args.plot)
+        plot_curve(args.run, args.plot, tuple(args.forks))
 
 
 if __name__ == "__main__":

@@ -91,6 +91,32 @@ def test_a_plot_of_a_run_without_evaluations_is_a_clear_error(tmp_path) -> None:
         curve.plot_curve(run, tmp_path / "curve.png")
 
 
+def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
+    curve = load_script("benchmarks/robustness_curve.py")
+    run, fork = tmp_path / "run", tmp_path / "fork"
+    _fake_run(run, checkpoint_steps=[], newest=300)
+    _fake_run(fork, checkpoint_steps=[], newest=500)
+
+    def row(steps: int, mean: float) -> dict:
+        cases = dict.fromkeys(curve.CASES, mean)
+        return {
+            "timesteps": steps,
+            "wall_s": 1.0,
+            "episodes": 50,
+            **cases,
+            "table1_mean": mean,
+            "vx_at_1.0": 1.0,
+        }
+
+    curve.write_rows(run, {s: row(s, 0.5) for s in (100, 300)})
+    curve.write_rows(fork, {s: row(s, 0.5) for s in (100, 300)})
+    with pytest.raises(ValueError, match="no evaluated checkpoint beyond"):
+        curve.plot_curve(run, tmp_path / "curve.png", (fork,))
+    curve.write_rows(fork, {**curve.read_rows(fork), 500: row(500, 0.7)})
+    curve.plot_curve(run, tmp_path / "curve.png", (fork,))
+    assert (tmp_path / "curve.png").stat().st_size > 10_000
+
+
 def test_the_trend_is_the_least_squares_slope_with_its_t_interval() -> None:
     curve = load_script("benchmarks/robustness_curve.py")
     rng = np.random.default_rng(0)
