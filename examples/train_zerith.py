@@ -3,7 +3,7 @@
     python examples/train_zerith.py                                   # HuRi, the Zerith1-v0 CPU preset
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run where it stopped
-    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_2 -params mirror_coef:4.0  # ... changed
+    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1 -params mirror_coef:4.0  # ... + symmetry
     python examples/train_zerith.py -conf hyperparams/huri_robust.yml -f runs --max-wall-minutes 150
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
