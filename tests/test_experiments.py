@@ -205,8 +205,15 @@ def test_a_killed_or_interrupted_command_continues_from_the_last_checkpoint(
     killed_at = _wait_for_checkpoint(out, "huri-no-rnd", 5, 1024, first)
     first.kill()
     first.communicate()
-    # 2. Ctrl-C (SIGINT to the command): the run stops, exit status 130.
-    second = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    # 2. Ctrl-C (SIGINT to the command): the run stops, exit status 130. A shell starts background jobs
+    # with SIGINT ignored, and children inherit that: the command gets Python's default handling back.
+    second = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     interrupted_at = _wait_for_checkpoint(out, "huri-no-rnd", 5, killed_at + 1024, second)
     second.send_signal(signal.SIGINT)
     output, _ = second.communicate(timeout=120)
