@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch as th
@@ -26,10 +27,11 @@ from sb3_huri.zoo import load_run
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 
 
-def asymmetry(agent: Path, case: str, robots: int, steps: int, seed: int) -> tuple[float, float]:
-    """The actor's mirror loss over `robots` x `steps` observations of its walk in `case`, and its mean
-    squared action there."""
-    model, normalizer = load_run(agent, "Zerith1-v0", normalized=True)
+def asymmetry(
+    model: Any, normalizer: Any, case: str, robots: int, steps: int, seed: int
+) -> tuple[float, float]:
+    """The actor's mirror loss over `robots` x `steps` observations of its walk in `case` (`model` and its
+    `normalizer` as `load_run` gives them), and its mean squared action there."""
     stats = normalizer.obs_rms["policy"]
     observation_mirror = NormalizedMirror.build(
         POLICY_MIRROR, stats.mean, np.sqrt(stats.var + normalizer.epsilon)
@@ -66,8 +68,9 @@ def main() -> None:
     print("| agent | case | asymmetry (mirror loss) | mean squared action |")
     print("|---|---|---|---|")
     for agent in args.agents:
+        model, normalizer = load_run(agent, "Zerith1-v0", normalized=True)
         for case in args.cases:
-            loss, scale = asymmetry(agent, case, args.robots, args.steps, args.seed)
+            loss, scale = asymmetry(model, normalizer, case, args.robots, args.steps, args.seed)
             print(f"| {agent} | {case} | {loss:.3f} | {scale:.3f} |", flush=True)
 
 

@@ -40,6 +40,7 @@ from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate
 from sb3_huri.zoo import load_run
 from zerith_gym.disturbances import FORCE_TARGETS, ForceSchedule
 from zerith_gym.gait import GAIT_PERIOD
+from zerith_gym.randomization import NOMINAL
 from zerith_gym.robot import CONTROL_DT, TOTAL_MASS
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND, Scenario
 
@@ -79,7 +80,7 @@ def push(target: str, force: float, direction: float, step: int, test_ranges: bo
         start_step=step,
         direction=direction,
     )
-    ranges = scenario.randomization if test_ranges else SCENARIOS["nominal"].randomization
+    ranges = scenario.randomization if test_ranges else NOMINAL
     return replace(scenario, name=f"push-{target}", randomization=ranges, force=schedule)
 
 
