@@ -35,14 +35,14 @@ from typing import Any
 import numpy as np
 import torch as th
 
-import zerith_gym
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
 from sb3_huri.zoo import load_run
 from zerith_gym.disturbances import FORCE_TARGETS, ForceSchedule
 from zerith_gym.gait import GAIT_PERIOD
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.robot import CONTROL_DT, TOTAL_MASS
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND, Scenario
+from zerith_gym.task import EPISODE_STEPS
 
 DIRECTIONS = {
     "from behind": 0.0,
@@ -55,17 +55,6 @@ PUSH_STEP = 100
 """The earliest push comes at 2 s, as Table 1's first impulse does."""
 PUSH_STEPS = 5
 """It lasts 0.1 s, as Table 1's impulses do."""
-
-
-class Stand:
-    """A policy that holds the default stance: the zero action, whatever it observes."""
-
-    def __init__(self, action_shape: tuple[int, ...]) -> None:
-        self.action_shape = action_shape
-
-    def predict(self, obs: dict[str, np.ndarray], deterministic: bool = True) -> tuple[np.ndarray, None]:
-        robots = len(next(iter(obs.values())))
-        return np.zeros((robots, *self.action_shape), dtype=np.float32), None
 
 
 def push(target: str, force: float, direction: float, step: int, test_ranges: bool) -> Scenario:
@@ -90,26 +79,10 @@ def falls_per_push(
     """Run `robots` episodes of `scenario` (a sudden one, with its own command) and count, for each push of
     its schedule, the robots standing when it came and those that fell before the next: array (pushes, 2)."""
     schedule = scenario.force
-    env = zerith_gym.make_vec_env(robots, seed=seed, scenario=scenario, workers=0)
-    horizon = env.options.episode_steps
-    starts = np.arange(schedule.start_step, horizon, schedule.period_steps)
-    fall_step = np.full(robots, horizon)
-    running = np.ones(robots, dtype=bool)
-    obs = env.reset()
-    try:
-        for step in range(horizon):
-            policy_obs = normalizer.normalize_obs(obs) if normalizer is not None else obs
-            action, _ = model.predict(policy_obs, deterministic=True)
-            obs, _, dones, infos = env.step(action)
-            for i in np.flatnonzero(dones & running):
-                running[i] = False
-                if infos[i]["fall"]:
-                    fall_step[i] = step
-            if not running.any():
-                break
-    finally:
-        env.close()
-    ends = np.append(starts[1:], horizon)
+    result = evaluate(model, normalizer, scenario, None, robots, seed, workers=0, fall_steps=True)
+    fall_step = np.nan_to_num(result["fall_step"], nan=EPISODE_STEPS)
+    starts = np.arange(schedule.start_step, EPISODE_STEPS, schedule.period_steps)
+    ends = np.append(starts[1:], EPISODE_STEPS)
     pairs = zip(starts, ends, strict=True)
     return np.array([[(fall_step >= a).sum(), ((fall_step >= a) & (fall_step < b)).sum()] for a, b in pairs])
 
@@ -186,7 +159,7 @@ def main() -> None:
     model, normalizer = load_run(args.agent, "Zerith1-v0")
     command = TEST_COMMAND
     if args.stand:
-        model, normalizer, command = Stand(model.action_space.shape), None, (0.0, 0.0, 0.0)
+        model, normalizer, command = HoldStance(), None, (0.0, 0.0, 0.0)
     if args.table1:
         print_table1(model, normalizer, args.robots, args.seed)
     else:

@@ -18,8 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-import zerith_gym
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, Scenario
 
@@ -30,20 +29,8 @@ RANGES = ("added_mass", "friction", "com_offset")
 def stand(scenario: Scenario, robots: int, seed: int) -> tuple[float, float]:
     """Share of `robots` episodes of `scenario` (zero action, zero command) that end in a fall, and the
     median control step of those falls (NaN when none fell)."""
-    env = zerith_gym.make_vec_env(robots, seed=seed, scenario=scenario, command=(0.0, 0.0, 0.0), workers=0)
-    env.reset()
-    running = np.ones(robots, dtype=bool)
-    fall_step = np.full(robots, np.nan)
-    zero = np.zeros((robots, *env.action_space.shape), dtype=np.float32)
-    step = 0
-    while running.any():
-        _, _, dones, infos = env.step(zero)
-        for i in np.flatnonzero(dones & running):
-            running[i] = False
-            if infos[i]["fall"]:
-                fall_step[i] = step
-        step += 1
-    env.close()
+    result = evaluate(HoldStance(), None, scenario, (0.0, 0.0, 0.0), robots, seed, workers=0, fall_steps=True)
+    fall_step = result["fall_step"]
     fell = ~np.isnan(fall_step)
     return float(fell.mean()), float(np.median(fall_step[fell])) if fell.any() else float("nan")
 

@@ -8,12 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sb3_huri.experiments.evaluation import evaluate
+from sb3_huri.experiments.evaluation import HoldStance, evaluate
 from tests.test_trained_agents import load_script
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS
-
-ACTION_SHAPE = (12,)
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +20,7 @@ def envelope():
 
 
 def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(envelope) -> None:
-    stand = envelope.Stand(ACTION_SHAPE)
+    stand = HoldStance()
 
     def survive(force: float, after: int, step: int = 100) -> float:
         scenario = envelope.push("centroid", force, math.pi / 2, step, test_ranges=False)
@@ -31,9 +29,13 @@ def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(env
 
     assert survive(20.0, after=100) == 1.0
     assert survive(2000.0, after=100) == 0.0
-    # the push comes at its step, not before: an episode that ends before it survives the same push
-    assert survive(2000.0, after=100, step=150) == 0.0
+    # the push comes at its step, not before: the robots fall after it, and an episode that ends before
+    # it survives the same push
     scenario = envelope.push("centroid", 2000.0, math.pi / 2, 150, test_ranges=False)
+    fall_step = evaluate(
+        stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=250, workers=0, fall_steps=True
+    )["fall_step"]
+    assert np.all((fall_step >= 150) & (fall_step < 250))
     assert (
         evaluate(stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=140, workers=0)["survive"] == 1.0
     )
@@ -42,7 +44,7 @@ def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(env
 def test_table1_pushes_account_for_every_robot(envelope) -> None:
     robots = 3
     scenario = replace(SCENARIOS["sudden-hands"], randomization=NOMINAL)
-    counts = envelope.falls_per_push(envelope.Stand(ACTION_SHAPE), None, scenario, robots, 0)
+    counts = envelope.falls_per_push(HoldStance(), None, scenario, robots, 0)
     standing, fell = counts[:, 0], counts[:, 1]
     assert len(counts) == 9  # a push every 2 s from 2 s on, in 20 s
     assert np.all(standing[1:] == standing[:-1] - fell[:-1])

@@ -37,6 +37,7 @@ import numpy as np
 
 from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
 from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
+from zerith_gym.options import ACTION_SPACE
 from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
 
@@ -104,6 +105,15 @@ def gait_measures(contact: np.ndarray, min_air_steps: int = MIN_AIR_STEPS) -> tu
     return rate, alternation, single
 
 
+class HoldStance:
+    """A policy that holds the default stance (the zero action, whatever it observes): what the PD
+    controllers alone do, the reference a trained agent should beat."""
+
+    def predict(self, obs: dict[str, np.ndarray], deterministic: bool = True) -> tuple[np.ndarray, None]:
+        robots = len(next(iter(obs.values())))
+        return np.zeros((robots, *ACTION_SPACE.shape), dtype=np.float32), None
+
+
 @dataclass
 class RiskTrace:
     """The critic's view along robot 0's episode (NaN after it ended), and averages over every robot-step."""
@@ -136,14 +146,16 @@ def evaluate(
     episode_steps: int | None = None,
     workers: int | None = None,
     risk: bool = False,
+    fall_steps: bool = False,
     backend_options: Mapping[str, Any] | None = None,
-) -> dict[str, float]:
+) -> dict[str, Any]:
     """Run one episode on each of ``episodes`` robots and summarize them (see the module docstring).
 
     ``normalizer``: the run's ``VecNormalize`` (observations are normalized as in training) or None.
     ``episode_steps``: the time limit (default: the env's, 20 s); ``workers``: processes stepping the
     robots (``zerith_gym.make_vec_env``; default one per core). With ``risk`` the result also holds
-    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``.
+    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``. With ``fall_steps``
+    it holds ``fall_step`` too: (episodes,) the control step at which each robot fell, NaN where none fell.
     ``backend_options``: more ``make_vec_env`` arguments, e.g. ``{"backend": "mjx", "solver_iterations": 4}``.
     """
     import zerith_gym
@@ -153,9 +165,12 @@ def evaluate(
         options["episode_steps"] = episode_steps
     env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options, **(backend_options or {}))
     try:
-        return _rollout(model, normalizer, env, episodes, risk)
+        result = _rollout(model, normalizer, env, episodes, risk)
     finally:
         env.close()
+    if not fall_steps:
+        del result["fall_step"]
+    return result
 
 
 def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: bool) -> dict[str, Any]:
@@ -163,7 +178,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
     horizon = env.options.episode_steps
     vx_cmd = np.array([info["command"][0] for info in env.reset_infos])
     alive = np.ones(episodes, dtype=bool)
-    fell = np.zeros(episodes, dtype=bool)
+    fall_step = np.full(episodes, np.nan)
     vx = np.full((horizon, episodes), np.nan)
     lin_err, yaw_err = np.full_like(vx, np.nan), np.full_like(vx, np.nan)
     contact = np.zeros((horizon, episodes, 2), dtype=bool)
@@ -192,13 +207,13 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
         contact[t, alive] = critic[alive, _CRITIC["foot_contact"]] > 0.5
         lin_err[t, alive] = [infos[i]["lin_vel_error"] for i in np.flatnonzero(alive)]
         yaw_err[t, alive] = [infos[i]["ang_vel_error"] for i in np.flatnonzero(alive)]
-        fell |= alive & np.array([info["fall"] for info in infos])
+        fall_step[alive & np.array([info["fall"] for info in infos])] = t
         alive &= ~dones
         if not alive.any():
             break
     gait = np.array([gait_measures(contact[~np.isnan(vx[:, i]), i]) for i in range(episodes)])
     result: dict[str, Any] = {
-        "survive": float(np.mean(~fell)),
+        "survive": float(np.mean(np.isnan(fall_step))),
         "vx_err": float(np.nanmean(np.abs(vx - vx_cmd))),
         "vx": float(np.nanmean(vx)),
         "lin_err": float(np.nanmean(lin_err)),
@@ -206,6 +221,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
         "steps_per_s": float(gait[:, 0].mean()),
         "alternation": float(gait[:, 1].mean()),
         "single_support": float(gait[:, 2].mean()),
+        "fall_step": fall_step,
     }
     if risk:
         beta_mean, iqr_mean = (risk_sums[:2] / risk_sums[2]).tolist()
