@@ -262,17 +262,28 @@ def curve_markdown(run: Path) -> str:
     return "\n".join([*lines, "", sentence] if sentence else lines)
 
 
+def fork_own_rows(
+    run_rows: dict[int, dict[str, str]], fork_rows: dict[int, dict[str, str]]
+) -> list[tuple[int, dict[str, str]]]:
+    """A fork's own rows, from the last row it shares with its run on: a row is shared when the run has
+    the same row at the same step (the fork's `robustness.csv` starts as a copy of the run's). Rows at the
+    same step but evaluated differently are the fork's own: after the fork both go on from the same step
+    count, so their checkpoints carry the same step numbers."""
+    rows = list(fork_rows.items())
+    first = next((i for i, (s, r) in enumerate(rows) if run_rows.get(s) != r), len(rows))
+    return rows[max(first - 1, 0) :] if first < len(rows) else []
+
+
 def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
     mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis. Each run of
-    `forks` (a copy of `run` trained on from one of its checkpoints) adds its Table-1 mean from its first
-    row `run` does not have, joined to the row before."""
+    `forks` (a copy of `run` trained on from one of its checkpoints) adds its Table-1 mean over its own
+    rows (`fork_own_rows`)."""
     from matplotlib.figure import Figure
 
     rows = list(read_rows(run).values())
     if not rows:
         raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
-    shared = {int(r["timesteps"]) for r in rows}
     steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
     figure = Figure(figsize=(8, 4.5), layout="constrained")
     axes = figure.add_subplot()
@@ -285,11 +296,9 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
     axes.plot(steps, mean, "k-", lw=2.5, label="Table-1 mean (95% band)")
     for fork, color in zip(forks, ("tab:red", "tab:purple", "tab:olive"), strict=False):
-        fork_rows = list(read_rows(fork).items())
-        first = next((i for i, (s, _) in enumerate(fork_rows) if s not in shared), None)
-        if first is None:
+        own = fork_own_rows(read_rows(run), read_rows(fork))
+        if not own:
             raise ValueError(f"{fork} has no evaluated checkpoint beyond those of {run} (robustness.csv)")
-        own = fork_rows[max(first - 1, 0) :]
         fork_steps = [s / 1e6 for s, _ in own]
         axes.plot(fork_steps, [float(r["table1_mean"]) for _, r in own], "-", color=color, lw=2.5,
                   label=f"{fork.name}: Table-1 mean")  # fmt: skip

@@ -115,6 +115,10 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     curve.write_rows(fork, {**curve.read_rows(fork), 500: row(500, 0.7)})
     curve.plot_curve(run, tmp_path / "curve.png", (fork,))
     assert (tmp_path / "curve.png").stat().st_size > 10_000
+    # both trained on from step 300: the run's row at 500 is its own model, not the fork's
+    curve.write_rows(run, {**curve.read_rows(run), 500: row(500, 0.6)})
+    own = curve.fork_own_rows(curve.read_rows(run), curve.read_rows(fork))
+    assert [(step, float(r["table1_mean"])) for step, r in own] == [(300, 0.5), (500, 0.7)]
 
 
 def test_the_trend_is_the_least_squares_slope_with_its_t_interval() -> None:
