@@ -281,7 +281,8 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     rows (`fork_own_rows`)."""
     from matplotlib.figure import Figure
 
-    rows = list(read_rows(run).values())
+    run_rows = read_rows(run)
+    rows = list(run_rows.values())
     if not rows:
         raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
     steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
@@ -296,7 +297,7 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
     axes.plot(steps, mean, "k-", lw=2.5, label="Table-1 mean (95% band)")
     for fork, color in zip(forks, ("tab:red", "tab:purple", "tab:olive"), strict=False):
-        own = fork_own_rows(read_rows(run), read_rows(fork))
+        own = fork_own_rows(run_rows, read_rows(fork))
         if not own:
             raise ValueError(f"{fork} has no evaluated checkpoint beyond those of {run} (robustness.csv)")
         fork_steps = [s / 1e6 for s, _ in own]
