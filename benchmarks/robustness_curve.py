@@ -39,7 +39,8 @@ from sb3_huri.zoo import load_run
 from sb3_huri.zoo.checkpoints import RunState
 
 ENV_ID = "Zerith1-v0"
-CASES = (*TABLE1_SCENARIOS, "side-impact", "nominal@1.0", "nominal@0.5")
+NOMINAL = ("nominal@1.0", "nominal@0.5")
+CASES = (*TABLE1_SCENARIOS, "side-impact", *NOMINAL)
 COLUMNS = ("timesteps", "wall_s", "hardware", "episodes", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
 EARLY_EPISODES = 10
 """Episodes per case of the rows written before the file had an `episodes` column."""
@@ -214,6 +215,41 @@ def trend_markdown(run: Path, rows: list[dict[str, str]]) -> str:
     return text
 
 
+SHIP_MEAN = 0.8
+SHIP_CASE_FLOOR = 0.6
+SHIP_VX = 0.8
+"""Shipping criteria of a robust agent: the Table-1 mean, the least any Table-1 case may survive and the
+forward velocity at a 1 m/s command (m/s); `nominal@1.0` and `nominal@0.5` must also pass without a fall."""
+
+
+def unmet_ship_criteria(row: dict[str, str]) -> list[str]:
+    """The shipping criteria a row of the curve misses, each said with its number ([] when it ships)."""
+    unmet = []
+    if float(row["table1_mean"]) < SHIP_MEAN:
+        unmet.append(f"Table-1 mean {float(row['table1_mean']):.3f} < {SHIP_MEAN}")
+    unmet += [
+        f"{case} {float(row[case]):.2f} < {SHIP_CASE_FLOOR}"
+        for case in TABLE1_SCENARIOS
+        if float(row[case]) < SHIP_CASE_FLOOR
+    ]
+    if float(row["vx_at_1.0"]) < SHIP_VX:
+        unmet.append(f"vx at 1 m/s {float(row['vx_at_1.0']):.2f} < {SHIP_VX}")
+    unmet += [f"{case} falls ({float(row[case]):.2f} survive)" for case in NOMINAL if float(row[case]) < 1.0]
+    return unmet
+
+
+def ship_markdown(rows: list[dict[str, str]]) -> str:
+    """Which rows meet the shipping criteria, or what the newest row misses."""
+    ready = [f"{int(r['timesteps']):,}" for r in rows if not unmet_ship_criteria(r)]
+    if ready:
+        return f"Rows that meet the shipping criteria: {', '.join(ready)} steps."
+    return (
+        "No row meets the shipping criteria yet; the newest misses: "
+        + "; ".join(unmet_ship_criteria(rows[-1]))
+        + "."
+    )
+
+
 def read_rows(run: Path) -> dict[int, dict[str, str]]:
     """The evaluated rows of a run's `robustness.csv` by step, each with its `episodes` per case."""
     path = run / "robustness.csv"
@@ -257,6 +293,8 @@ def curve_markdown(run: Path) -> str:
         f"{episodes} episodes per case in the newest row: its Table-1 mean ({n} episodes) lies in "
         f"[{low:.2f}, {high:.2f}] (95% Wilson interval); one case's share is known to about "
         f"+-{(one_high - one_low) / 2:.2f}.",
+        "",
+        ship_markdown(rows),
     ]
     sentence = trend_markdown(run, rows)
     return "\n".join([*lines, "", sentence] if sentence else lines)
@@ -368,6 +406,7 @@ def main() -> None:
         rows[steps] = {**trained, "episodes": args.episodes, **metrics, "eval_s": round(time.time() - began)}
         write_rows(args.run, rows)
         print(rows[steps], flush=True)
+        print("unmet shipping criteria:", unmet_ship_criteria(rows[steps]) or "none", flush=True)
     if args.docs is not None:
         update_docs(args.run, args.docs)
     if args.plot is not None:

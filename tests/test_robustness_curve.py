@@ -158,3 +158,21 @@ def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
     ]
     sentence = curve.trend_markdown(run, flat)
     assert "over 11 rows" in sentence and "Over the last 50M steps (6 rows): table1_mean +0.000" in sentence
+
+
+def test_the_shipping_check_names_every_criterion_a_row_misses() -> None:
+    curve = load_script("benchmarks/robustness_curve.py")
+    passing = {case: "0.9" for case in curve.TABLE1_SCENARIOS}
+    passing.update({"table1_mean": "0.9", "vx_at_1.0": "0.85", "nominal@1.0": "1.0", "nominal@0.5": "1.0"})
+    passing["timesteps"] = "200000000"
+    assert curve.unmet_ship_criteria(passing) == []
+    assert "200,000,000" in curve.ship_markdown([passing])
+
+    misses = {"sudden-feet": "0.4", "table1_mean": "0.75", "vx_at_1.0": "0.65", "nominal@0.5": "0.98"}
+    failing = {**passing, **misses}
+    unmet = curve.unmet_ship_criteria(failing)
+    assert len(unmet) == 4
+    assert any("sudden-feet 0.40" in u for u in unmet) and any("vx at 1 m/s 0.65" in u for u in unmet)
+    assert any("nominal@0.5" in u for u in unmet) and any("Table-1 mean 0.750" in u for u in unmet)
+    assert curve.ship_markdown([passing, failing]).startswith("Rows that meet")
+    assert "sudden-feet 0.40" in curve.ship_markdown([failing])
