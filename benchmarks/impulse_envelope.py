@@ -79,7 +79,7 @@ def falls_per_push(
     """Run `robots` episodes of `scenario` (a sudden one, with its own command) and count, for each push of
     its schedule, the robots standing when it came and those that fell before the next: array (pushes, 2)."""
     schedule = scenario.force
-    result = evaluate(model, normalizer, scenario, None, robots, seed, workers=0, fall_steps=True)
+    result = evaluate(model, normalizer, scenario, None, robots, seed, workers=0, per_robot=True)
     fall_step = np.nan_to_num(result["fall_step"], nan=EPISODE_STEPS)
     starts = np.arange(schedule.start_step, EPISODE_STEPS, schedule.period_steps)
     ends = np.append(starts[1:], EPISODE_STEPS)

@@ -29,7 +29,7 @@ RANGES = ("added_mass", "friction", "com_offset")
 def stand(scenario: Scenario, robots: int, seed: int) -> tuple[float, float]:
     """Share of `robots` episodes of `scenario` (zero action, zero command) that end in a fall, and the
     median control step of those falls (NaN when none fell)."""
-    result = evaluate(HoldStance(), None, scenario, (0.0, 0.0, 0.0), robots, seed, workers=0, fall_steps=True)
+    result = evaluate(HoldStance(), None, scenario, (0.0, 0.0, 0.0), robots, seed, workers=0, per_robot=True)
     fall_step = result["fall_step"]
     fell = ~np.isnan(fall_step)
     return float(fell.mean()), float(np.median(fall_step[fell])) if fell.any() else float("nan")

@@ -33,7 +33,7 @@ def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(env
     # it survives the same push
     scenario = envelope.push("centroid", 2000.0, math.pi / 2, 150, test_ranges=False)
     fall_step = evaluate(
-        stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=250, workers=0, fall_steps=True
+        stand, None, scenario, (0.0, 0.0, 0.0), 2, 0, episode_steps=250, workers=0, per_robot=True
     )["fall_step"]
     assert np.all((fall_step >= 150) & (fall_step < 250))
     assert (

@@ -43,6 +43,8 @@ CRITIC_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 POLICY_SIZE = sum(size for _, size in POLICY_LAYOUT)
 CRITIC_SIZE = sum(size for _, size in CRITIC_LAYOUT)
+CRITIC_DOMAIN = slice(CRITIC_SIZE - sum(DOMAIN_SIZES.values()), CRITIC_SIZE)
+"""The critic's domain-parameter block (its last), laid out as `DomainParams.from_vector` reads it."""
 
 POLICY_NOISE = {
     "base_roll_pitch": 0.05,
@@ -92,9 +94,8 @@ def _critic_affine() -> tuple[np.ndarray, np.ndarray]:
     scale[critic["foot_contact_force"]] = 1.0 / BODY_WEIGHT
     scale[critic["external_force"]] = 1.0 / MAX_EXTERNAL_FORCE
     low, high = domain_bounds(WIDEST)
-    domain = slice(critic[f"domain_{next(iter(DOMAIN_SIZES))}"].start, CRITIC_SIZE)
-    offset[domain] = (low + high) / 2.0
-    scale[domain] = 2.0 / (high - low)
+    offset[CRITIC_DOMAIN] = (low + high) / 2.0
+    scale[CRITIC_DOMAIN] = 2.0 / (high - low)
     return offset.astype(np.float32), scale.astype(np.float32)
 
 

@@ -36,8 +36,9 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
-from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
+from zerith_gym.observations import CRITIC_DOMAIN, CRITIC_LAYOUT, critic_in_units, layout_slices
 from zerith_gym.options import ACTION_SPACE
+from zerith_gym.randomization import DomainParams
 from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
 
@@ -146,7 +147,7 @@ def evaluate(
     episode_steps: int | None = None,
     workers: int | None = None,
     risk: bool = False,
-    fall_steps: bool = False,
+    per_robot: bool = False,
     backend_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run one episode on each of ``episodes`` robots and summarize them (see the module docstring).
@@ -154,8 +155,9 @@ def evaluate(
     ``normalizer``: the run's ``VecNormalize`` (observations are normalized as in training) or None.
     ``episode_steps``: the time limit (default: the env's, 20 s); ``workers``: processes stepping the
     robots (``zerith_gym.make_vec_env``; default one per core). With ``risk`` the result also holds
-    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``. With ``fall_steps``
-    it holds ``fall_step`` too: (episodes,) the control step at which each robot fell, NaN where none fell.
+    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``. With ``per_robot``
+    it holds each robot's ``fall_step`` too: (episodes,) the control step at which it fell, NaN where none
+    fell; and ``domain``: the ``DomainParams`` it was drawn (physical units), to tell which conditions fell.
     ``backend_options``: more ``make_vec_env`` arguments, e.g. ``{"backend": "mjx", "solver_iterations": 4}``.
     """
     import zerith_gym
@@ -168,13 +170,14 @@ def evaluate(
         result = _rollout(model, normalizer, env, episodes, risk)
     finally:
         env.close()
-    if not fall_steps:
-        del result["fall_step"]
+    if not per_robot:
+        del result["fall_step"], result["domain"]
     return result
 
 
 def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: bool) -> dict[str, Any]:
     obs = env.reset()
+    domain = critic_in_units(obs["critic"])[:, CRITIC_DOMAIN]
     horizon = env.options.episode_steps
     vx_cmd = np.array([info["command"][0] for info in env.reset_infos])
     alive = np.ones(episodes, dtype=bool)
@@ -222,6 +225,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
         "alternation": float(gait[:, 1].mean()),
         "single_support": float(gait[:, 2].mean()),
         "fall_step": fall_step,
+        "domain": DomainParams.from_vector(domain),
     }
     if risk:
         beta_mean, iqr_mean = (risk_sums[:2] / risk_sums[2]).tolist()
