@@ -32,7 +32,7 @@ import torch as th
 
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
 from sb3_huri.zoo import load_run
-from zerith_gym.randomization import DomainParams
+from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 from zerith_gym.scenarios import SCENARIOS, Scenario
 
 ENV_ID = "Zerith1-v0"
@@ -112,44 +112,39 @@ def main() -> None:
             parse_case(case)
         except ValueError as error:
             parser.error(str(error))
+    parameters = list(scalar_parameters(DomainParams.from_vector(np.zeros((1, DOMAIN_VECTOR_SIZE)))))
+    if args.parameter not in parameters:
+        parser.error(f"unknown --parameter {args.parameter!r}; one of {', '.join(parameters)}")
     th.set_num_threads(1)
     model, normalizer = load_run(args.agent, ENV_ID)
     bins = [f"[{lo:g}, {hi:g})" for lo, hi in itertools.pairwise(edges)]
     bins[-1] = bins[-1][:-1] + "]"  # the last bin holds its upper edge
-    survival_rows, correlation_rows, names = [], [], None
+    survival_rows, correlations = [], {}
     for case in args.cases:
         scenario, command = with_friction(case, args.friction)
         result = evaluate(
             model, normalizer, scenario, command, args.robots, args.seed, workers=0, per_robot=True
         )
         values = scalar_parameters(result["domain"])
-        if args.parameter not in values:
-            parser.error(f"unknown --parameter {args.parameter!r}; one of {', '.join(values)}")
         survived = np.isnan(result["fall_step"])
         cells = survival_per_bin(values[args.parameter], survived, edges)
         survival_rows.append(
             f"| {case} | {survived.mean():.2f} | " + " | ".join(f"{s:.2f} ({n})" for s, n in cells) + " |"
         )
-        correlations = fall_correlations(values, ~survived)
-        names = names or list(correlations)
-        correlation_rows.append(
-            f"| {case} | "
-            + " | ".join(
-                f"{correlations[n][0]:+.2f} (p {correlations[n][1]:.3f})" if n in correlations else "-"
-                for n in names or []
-            )
-            + " |"
-        )
+        correlations[case] = fall_correlations(values, ~survived)
         print(f"{case}: {survived.mean():.2f} survive", flush=True)
     print(
         f"\nSurvival per bin of {args.parameter} ({args.robots} robots per case, seeds {args.seed}+; robots):"
     )
     print(f"| case | all | {' | '.join(bins)} |\n|" + "---|" * (len(bins) + 2))
     print("\n".join(survival_rows))
+    names = [n for n in parameters if any(n in c for c in correlations.values())]
     if names:
         print("\nCorrelation of falling with each parameter (point-biserial r, p-value):")
         print(f"| case | {' | '.join(names)} |\n|" + "---|" * (len(names) + 1))
-        print("\n".join(correlation_rows))
+        for case, found in correlations.items():
+            cells = [f"{found[n][0]:+.2f} (p {found[n][1]:.3f})" if n in found else "-" for n in names]
+            print(f"| {case} | {' | '.join(cells)} |")
 
 
 if __name__ == "__main__":
