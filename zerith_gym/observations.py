@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.randomization import DOMAIN_SIZES, WIDEST, domain_bounds
+from zerith_gym.randomization import DOMAIN_SIZES, DOMAIN_VECTOR_SIZE, WIDEST, domain_bounds
 
 HEIGHT_SAMPLE_OFFSETS = np.array([(dx, dy) for dx in (-0.1, 0.0, 0.1) for dy in (-0.1, 0.0, 0.1)])
 """Height-sample points around each foot (m, in the base's yaw frame): a 3 x 3 grid, 0.1 m apart."""
@@ -43,7 +43,7 @@ CRITIC_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 POLICY_SIZE = sum(size for _, size in POLICY_LAYOUT)
 CRITIC_SIZE = sum(size for _, size in CRITIC_LAYOUT)
-CRITIC_DOMAIN = slice(CRITIC_SIZE - sum(DOMAIN_SIZES.values()), CRITIC_SIZE)
+CRITIC_DOMAIN = slice(CRITIC_SIZE - DOMAIN_VECTOR_SIZE, CRITIC_SIZE)
 """The critic's domain-parameter block (its last), laid out as `DomainParams.from_vector` reads it."""
 
 POLICY_NOISE = {
