@@ -11,20 +11,16 @@ a Table-1 share mixes easy robots with hard ones. This runs `--robots` episodes 
     python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3
     python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3 --parameter added_mass --bins -3 0 3 8
     python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3 --cases continuous-feet --robots 200
-    python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3 --friction 0.55 1.5
 
-`--friction LOW HIGH` evaluates the same robots with the scenarios' friction range replaced: every robot
-keeps its draw, mapped linearly onto the new range. With 0.55 1.5 each test friction mu in [0.1, 2] becomes
-(mu + 1) / 2: the friction a foot of friction mu has on a ground of friction 1 under PhysX's default rule
-(the mean of the two materials), where MuJoCo's contact takes the larger of the two and this env gives
-both the drawn mu.
+The friction binned and correlated is the drawn sole material; a sole slides at its mean with the ground's 1
+(`zerith_gym.physics.contact_friction`).
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
-from dataclasses import fields, replace
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -33,12 +29,10 @@ import torch as th
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
 from sb3_huri.zoo import load_run
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
-from zerith_gym.scenarios import SCENARIOS, Scenario
 
 ENV_ID = "Zerith1-v0"
 FRICTION_BINS = (0.1, 0.3, 0.55, 1.0, 1.5, 2.0)
-"""Default bin edges for friction; 0.55 is the lowest friction a PhysX contact with a ground of friction 1
-would have under PhysX's default rule (the mean of the two materials) for a foot friction of 0.1."""
+"""Default bin edges for the sole's friction (contact frictions 0.55, 0.65, 0.775, 1, 1.25, 1.5)."""
 
 
 def scalar_parameters(domain: DomainParams) -> dict[str, np.ndarray]:
@@ -78,16 +72,6 @@ def fall_correlations(values: dict[str, np.ndarray], fell: np.ndarray) -> dict[s
     return out
 
 
-def with_friction(case: str, friction: tuple[float, float] | None) -> tuple[str | Scenario, tuple | None]:
-    """The scenario and command of a case, its friction range replaced by `friction` when given."""
-    scenario, command = parse_case(case)
-    if friction is None:
-        return scenario, command
-    base = SCENARIOS[scenario]
-    ranges = replace(base.randomization, friction=friction)
-    return replace(base, name=f"{scenario}-friction", randomization=ranges), command
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -98,12 +82,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--parameter", default="friction", help="the parameter to bin (see the r table)")
     parser.add_argument("--bins", type=float, nargs="+", default=list(FRICTION_BINS), help="bin edges")
-    parser.add_argument(
-        "--friction", type=float, nargs=2, metavar=("LOW", "HIGH"), help="replace the friction range"
-    )
     args = parser.parse_args()
-    if args.friction is not None and not 0 < args.friction[0] <= args.friction[1]:
-        parser.error(f"--friction needs 0 < LOW <= HIGH, got {args.friction}")
     edges = np.array(sorted(args.bins))
     if len(edges) < 2:
         parser.error("--bins needs at least two edges")
@@ -121,7 +100,7 @@ def main() -> None:
     bins[-1] = bins[-1][:-1] + "]"  # the last bin holds its upper edge
     survival_rows, correlations = [], {}
     for case in args.cases:
-        scenario, command = with_friction(case, args.friction)
+        scenario, command = parse_case(case)
         result = evaluate(
             model, normalizer, scenario, command, args.robots, args.seed, workers=0, per_robot=True
         )

@@ -57,16 +57,3 @@ def test_correlations_match_numpy_and_skip_what_does_not_vary(survival) -> None:
     expected = np.corrcoef(fell.astype(float), values["friction"])[0, 1]
     assert correlations["friction"][0] == pytest.approx(expected) and correlations["friction"][1] < 1e-3
     assert survival.fall_correlations(values, np.ones(40, dtype=bool)) == {}
-
-
-def test_a_replaced_friction_range_keeps_each_robots_draw(survival) -> None:
-    stand = HoldStance()
-
-    def friction(case: str, new_range: tuple[float, float] | None) -> np.ndarray:
-        scenario, command = survival.with_friction(case, new_range)
-        result = evaluate(stand, None, scenario, command, 5, 7, episode_steps=2, workers=0, per_robot=True)
-        return result["domain"].friction[:, 0]
-
-    drawn = friction("sudden-feet", None)
-    np.testing.assert_allclose(friction("sudden-feet", (0.55, 1.5)), (drawn + 1.0) / 2.0, rtol=1e-4)
-    assert survival.with_friction("nominal@0.5", None) == ("nominal", (0.5, 0.0, 0.0))

@@ -24,7 +24,8 @@ class RandomizationRanges:
     """Uniform ranges of every randomized quantity. Defaults are the nominal robot (no randomization)."""
 
     friction: Range = (1.0, 1.0)
-    """Sliding friction of the feet and the ground."""
+    """Sliding friction of the soles' material. A foot on the ground slides at `contact_friction` of it: the
+    mean with the ground's material (`GROUND_FRICTION`), as in the simulator the paper trained in."""
     added_mass: Range = (0.0, 0.0)
     """Mass (kg) added to the root body (pelvis, trunk, head): a load at the centroid."""
     com_offset: Range = (0.0, 0.0)
