@@ -176,3 +176,12 @@ def test_the_side_impact_is_one_200_newton_push_from_the_side_at_two_seconds():
     env.close()
     random_direction = horizontal_vectors(np.array([[0.0, 0.25]]), np.array([1.0, 1.0]), np.array([np.nan]))
     np.testing.assert_allclose(random_direction, [[0.0, 1.0, 0.0]], atol=1e-12)  # NaN: the uniform draw
+
+
+def test_robust_commands_straddle_the_test_command():
+    """The test's 1 m/s must lie inside the forward speeds the recipe trains on, not at their edge."""
+    env = zerith_gym.Zerith1Env(scenario="robust")
+    forward = np.array([env.reset(seed=seed)[1]["command"][0] for seed in range(60)])
+    moving = forward[forward != 0.0]
+    assert (moving > 1.0).sum() >= 5 and (moving < 1.0).sum() >= 30
+    assert moving.min() >= 0.0 and moving.max() <= 1.3
