@@ -92,7 +92,7 @@ def contact_friction(sole_friction: np.ndarray) -> np.ndarray:
     it on the real robot). The paper trained in Isaac Gym, whose PhysX engine gives a contact the mean of its
     two materials' frictions by default, on a ground of friction 1 (legged_gym's). MuJoCo takes the larger of
     the two geoms' frictions instead, so the env gives both the sole and the ground this mean: a drawn 0.1
-    slides at 0.55, a drawn 2 at 1.5, and the nominal 1 stays 1. DESIGN.md, section 4, records the decision.
+    slides at 0.55, a drawn 2 at 1.5, and the nominal 1 stays 1 (docs/zerith1.md, "How friction is read").
     """
     return (sole_friction + GROUND_FRICTION) / 2
 
