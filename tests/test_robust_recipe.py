@@ -157,7 +157,24 @@ def test_the_robust_preset_trains_with_its_curriculum_and_normalizer():
 def test_scaling_the_robust_scenario_scales_every_force_of_its_cycle():
     half = scaled_scenario(SCENARIOS["robust"], 0.5)
     assert half.force.magnitude == (0.0, 100.0)
-    assert [s.magnitude for s in half.force.schedules] == [(0.0, 50.0), (75.0, 100.0)] * 3
+    continuous, sudden = (0.0, 50.0), (75.0, 100.0)
+    assert [s.magnitude for s in half.force.schedules] == [continuous, sudden] * 3 + [continuous]
+
+
+def test_robust_gives_the_continuous_feet_force_twice_the_time_of_each_other_force():
+    """Per 14-s cycle: two 2-s phases of continuous force on the feet, re-drawn every 0.1 s, and one of each
+    other force (the feet's continuous force topples the agent most; docs/training.md)."""
+    cycle = SCENARIOS["robust"].force
+    table = cycle.table(7 * cycle.phase_steps)
+    continuous = table.magnitude[:, 1] == 100.0
+    for target, index in TARGET_INDEX.items():
+        steps = {"continuous": np.sum((table.target == index) & continuous),
+                 "sudden": np.sum((table.target == index) & ~continuous)}  # fmt: skip
+        assert steps == {"continuous": 200 if target == "feet" else 100, "sudden": 100}, target
+    held = np.flatnonzero((table.target == TARGET_INDEX["feet"]) & continuous)
+    np.testing.assert_array_equal(held, np.r_[400:500, 600:700])
+    assert table.on[held].all()
+    np.testing.assert_array_equal(np.flatnonzero(table.draw[held]), np.arange(0, 200, 5))
 
 
 def test_the_side_impact_is_one_200_newton_push_from_the_side_at_two_seconds():
