@@ -29,7 +29,7 @@ import re
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch as th
@@ -44,6 +44,9 @@ CASES = (*TABLE1_SCENARIOS, "side-impact", *NOMINAL)
 COLUMNS = ("timesteps", "wall_s", "hardware", "episodes", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
 EARLY_EPISODES = 10
 """Episodes per case of the rows written before the file had an `episodes` column."""
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def checkpoints(run: Path) -> dict[int, tuple[Path, Path]]:
@@ -312,11 +315,15 @@ def fork_own_rows(
     return rows[max(first - 1, 0) :] if first < len(rows) else []
 
 
-def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
+FORK_COLORS = ("tab:red", "tab:purple", "tab:olive", "teal", "darkgoldenrod", "magenta")
+"""The colors of the forks' lines, in order (taken again from the first past the last)."""
+
+
+def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> Figure:
     """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
     mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis. Each run of
     `forks` (a copy of `run` trained on from one of its checkpoints) adds its Table-1 mean over its own
-    rows (`fork_own_rows`)."""
+    rows (`fork_own_rows`). Returns the figure it saved to `path`."""
     from matplotlib.figure import Figure
 
     run_rows = read_rows(run)
@@ -334,7 +341,8 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     bands = [wilson_interval(m, int(r["episodes"]) * cases) for m, r in zip(mean, rows, strict=True)]
     axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
     axes.plot(steps, mean, "k-", lw=2.5, label="Table-1 mean (95% band)")
-    for fork, color in zip(forks, ("tab:red", "tab:purple", "tab:olive"), strict=False):
+    for index, fork in enumerate(forks):
+        color = FORK_COLORS[index % len(FORK_COLORS)]
         own = fork_own_rows(run_rows, read_rows(fork))
         if not own:
             raise ValueError(f"{fork} has no evaluated checkpoint beyond those of {run} (robustness.csv)")
@@ -354,6 +362,7 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> None:
     axes.legend(fontsize=7, loc="upper left")
     axes.set_title(f"{run.name}: survival under the paper's test disturbances, by training steps")
     figure.savefig(path, dpi=110)
+    return figure
 
 
 def update_docs(run: Path, docs: Path) -> None:

@@ -113,8 +113,11 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     with pytest.raises(ValueError, match="no evaluated checkpoint beyond"):
         curve.plot_curve(run, tmp_path / "curve.png", (fork,))
     curve.write_rows(fork, {**curve.read_rows(fork), 500: row(500, 0.7)})
-    curve.plot_curve(run, tmp_path / "curve.png", (fork,))
+    figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,) * 8)
     assert (tmp_path / "curve.png").stat().st_size > 10_000
+    fork_lines = [line for line in figure.axes[0].get_lines() if line.get_label() == "fork: Table-1 mean"]
+    assert len(fork_lines) == 8  # every fork is drawn, however many
+    assert len({line.get_color() for line in fork_lines}) == len(curve.FORK_COLORS)
     # both trained on from step 300: the run's row at 500 is its own model, not the fork's
     curve.write_rows(run, {**curve.read_rows(run), 500: row(500, 0.6)})
     own = curve.fork_own_rows(curve.read_rows(run), curve.read_rows(fork))
