@@ -15,6 +15,8 @@ with `--episodes` when its checkpoint is still there, and kept as it is otherwis
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --every 5000000 --episodes 50
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --docs docs/training.md  # docs' tables too
     python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --plot docs/media/robust-run.png
+    python benchmarks/robustness_curve.py runs/huri/Zerith1-v0_1 --plot curve.png \
+        --forks runs/huri/Zerith1-v0_3 --versus runs/huri-baseline/Zerith1-v0_1    # PPO beside it
 
 With `--docs FILE`, the run's status (sessions, steps, wall time, curriculum, the update's figures) and the
 robustness curve replace the text between `<!-- robust-run:begin -->` and `<!-- robust-run:end -->` in FILE.
@@ -317,13 +319,16 @@ def fork_own_rows(
 
 FORK_COLORS = ("tab:red", "tab:purple", "tab:olive", "teal", "darkgoldenrod", "magenta")
 """The colors of the forks' lines, in order (taken again from the first past the last)."""
+VERSUS_COLORS = ("tab:blue", "tab:green", "tab:brown")
+"""The colors of other methods' lines (`--versus`), in order."""
 
 
-def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> Figure:
+def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tuple[Path, ...] = ()) -> Figure:
     """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
     mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis. Each run of
     `forks` (a copy of `run` trained on from one of its checkpoints) adds its Table-1 mean over its own
-    rows (`fork_own_rows`). Returns the figure it saved to `path`."""
+    rows (`fork_own_rows`); each run of `versus` (another method's run, e.g. PPO with the same recipe) its
+    Table-1 mean over all its rows, dashed, labelled `<algo>/<run>`. Returns the figure it saved to `path`."""
     from matplotlib.figure import Figure
 
     run_rows = read_rows(run)
@@ -349,6 +354,14 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = ()) -> Figure:
         fork_steps = [s / 1e6 for s, _ in own]
         axes.plot(fork_steps, [float(r["table1_mean"]) for _, r in own], "-", color=color, lw=2.5,
                   label=f"{fork.name}: Table-1 mean")  # fmt: skip
+    for index, other in enumerate(versus):
+        other_rows = list(read_rows(other).values())
+        if not other_rows:
+            raise ValueError(f"{other} has no evaluated checkpoint to plot (robustness.csv)")
+        other_steps = [int(r["timesteps"]) / 1e6 for r in other_rows]
+        axes.plot(other_steps, [float(r["table1_mean"]) for r in other_rows], "--", lw=2.5,
+                  color=VERSUS_COLORS[index % len(VERSUS_COLORS)],
+                  label=f"{other.parent.name}/{other.name}: Table-1 mean")  # fmt: skip
     axes.set_xlabel("environment steps (millions)")
     axes.set_ylabel("survival rate (20-s episodes)")
     axes.set_ylim(-0.02, 1.02)
@@ -396,6 +409,13 @@ def main() -> None:
         default=[],
         help="runs forked from this one: their Table-1 mean in the plot",
     )
+    parser.add_argument(
+        "--versus",
+        type=Path,
+        nargs="+",
+        default=[],
+        help="other methods' runs (e.g. PPO with the same recipe): their Table-1 mean in the plot, dashed",
+    )
     args = parser.parse_args()
     th.set_num_threads(1)
     rows = read_rows(args.run)
@@ -419,7 +439,7 @@ def main() -> None:
     if args.docs is not None:
         update_docs(args.run, args.docs)
     if args.plot is not None:
-        plot_curve(args.run, args.plot, tuple(args.forks))
+        plot_curve(args.run, args.plot, tuple(args.forks), tuple(args.versus))
 
 
 if __name__ == "__main__":

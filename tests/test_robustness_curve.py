@@ -118,6 +118,20 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     fork_lines = [line for line in figure.axes[0].get_lines() if line.get_label() == "fork: Table-1 mean"]
     assert len(fork_lines) == 8  # every fork is drawn, however many
     assert len({line.get_color() for line in fork_lines}) == len(curve.FORK_COLORS)
+    ppo = tmp_path / "huri-baseline" / "Zerith1-v0_1"
+    _fake_run(ppo, checkpoint_steps=[], newest=400)
+    with pytest.raises(ValueError, match="no evaluated checkpoint to plot"):
+        curve.plot_curve(run, tmp_path / "curve.png", versus=(ppo,))
+    curve.write_rows(ppo, {s: row(s, m) for s, m in ((200, 0.1), (400, 0.3))})
+    figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,), versus=(ppo,))
+    (versus_line,) = [
+        line
+        for line in figure.axes[0].get_lines()
+        if line.get_label() == "huri-baseline/Zerith1-v0_1: Table-1 mean"
+    ]
+    assert list(versus_line.get_xdata()) == pytest.approx([2e-4, 4e-4])
+    assert list(versus_line.get_ydata()) == [0.1, 0.3]
+    assert versus_line.get_linestyle() == "--"
     # both trained on from step 300: the run's row at 500 is its own model, not the fork's
     curve.write_rows(run, {**curve.read_rows(run), 500: row(500, 0.6)})
     own = curve.fork_own_rows(curve.read_rows(run), curve.read_rows(fork))
