@@ -336,7 +336,7 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tupl
     if not rows:
         raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
     steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
-    figure = Figure(figsize=(8, 4.5), layout="constrained")
+    figure = Figure(figsize=(8, 5.2), layout="constrained")
     axes = figure.add_subplot()
     for case in (*TABLE1_SCENARIOS, "side-impact"):
         style = ":" if case == "side-impact" else "-"
@@ -372,7 +372,7 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tupl
     scale_axes.plot([c[0] for c in curve], [c[1] for c in curve], color="tab:gray", lw=1, ls="--")
     scale_axes.set_ylabel("curriculum scale (dashed)", color="tab:gray")
     scale_axes.set_ylim(-0.02, 1.02)
-    axes.legend(fontsize=7, loc="upper left")
+    figure.legend(fontsize=7, loc="outside lower center", ncol=4)
     axes.set_title(f"{run.name}: survival under the paper's test disturbances, by training steps")
     figure.savefig(path, dpi=110)
     return figure
