@@ -323,6 +323,12 @@ VERSUS_COLORS = ("tab:blue", "tab:green", "tab:brown")
 """The colors of other methods' lines (`--versus`), in order."""
 
 
+def _mean_line(rows: list[dict[str, str]]) -> tuple[np.ndarray, np.ndarray]:
+    """The Table-1 mean of `rows` by training steps in millions, as a plot's x and y."""
+    steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
+    return steps, np.array([float(r["table1_mean"]) for r in rows])
+
+
 def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tuple[Path, ...] = ()) -> Figure:
     """The robustness curve as a figure: each Table-1 case and `side-impact` by training steps, the Table-1
     mean with its 95% Wilson band, and the curriculum's scale (`curve.csv`) on a second axis. Each run of
@@ -335,13 +341,12 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tupl
     rows = list(run_rows.values())
     if not rows:
         raise ValueError(f"{run} has no evaluated checkpoint to plot (robustness.csv)")
-    steps = np.array([int(r["timesteps"]) for r in rows]) / 1e6
+    steps, mean = _mean_line(rows)
     figure = Figure(figsize=(8, 5.2), layout="constrained")
     axes = figure.add_subplot()
     for case in (*TABLE1_SCENARIOS, "side-impact"):
         style = ":" if case == "side-impact" else "-"
         axes.plot(steps, [float(r[case]) for r in rows], style, lw=1, alpha=0.7, label=case)
-    mean = np.array([float(r["table1_mean"]) for r in rows])
     cases = len(TABLE1_SCENARIOS)
     bands = [wilson_interval(m, int(r["episodes"]) * cases) for m, r in zip(mean, rows, strict=True)]
     axes.fill_between(steps, [b[0] for b in bands], [b[1] for b in bands], color="black", alpha=0.15)
@@ -351,15 +356,13 @@ def plot_curve(run: Path, path: Path, forks: tuple[Path, ...] = (), versus: tupl
         own = fork_own_rows(run_rows, read_rows(fork))
         if not own:
             raise ValueError(f"{fork} has no evaluated checkpoint beyond those of {run} (robustness.csv)")
-        fork_steps = [s / 1e6 for s, _ in own]
-        axes.plot(fork_steps, [float(r["table1_mean"]) for _, r in own], "-", color=color, lw=2.5,
-                  label=f"{fork.name}: Table-1 mean")  # fmt: skip
+        label = f"{fork.name}: Table-1 mean"
+        axes.plot(*_mean_line([r for _, r in own]), "-", color=color, lw=2.5, label=label)
     for index, other in enumerate(versus):
         other_rows = list(read_rows(other).values())
         if not other_rows:
             raise ValueError(f"{other} has no evaluated checkpoint to plot (robustness.csv)")
-        other_steps = [int(r["timesteps"]) / 1e6 for r in other_rows]
-        axes.plot(other_steps, [float(r["table1_mean"]) for r in other_rows], "--", lw=2.5,
+        axes.plot(*_mean_line(other_rows), "--", lw=2.5,
                   color=VERSUS_COLORS[index % len(VERSUS_COLORS)],
                   label=f"{other.parent.name}/{other.name}: Table-1 mean")  # fmt: skip
     axes.set_xlabel("environment steps (millions)")
