@@ -11,7 +11,8 @@ scenarios). Each case runs `--episodes` robots side by side for one 20-s episode
 deterministic policy; robot i is seeded with `seed + i`, so every agent meets the same conditions.
 
 Columns:
-- `survive`: share of episodes that reach 20 s without a fall;
+- `survive`: share of episodes that reach 20 s without a fall; `low` and `high`: its 95% Wilson interval
+  (over `--episodes`: 20 robots know a share to about +-0.2, 100 to about +-0.1);
 - `vx_err`: mean |v_x - v_x,cmd| (m/s, pelvis frame) over every step of every episode, up to a fall;
 - `vx`: mean forward velocity (m/s); `lin_err`: mean |v_xy - v_xy,cmd|; `yaw_err`: mean |w_z - w_z,cmd|;
 - `steps/s`: steps per second, a step being a foot off the ground for at least 60 ms (a walk at the
@@ -31,7 +32,7 @@ from pathlib import Path
 
 import torch as th
 
-from sb3_huri.experiments.evaluation import evaluate, parse_case
+from sb3_huri.experiments.evaluation import evaluate, parse_case, wilson_interval
 from sb3_huri.experiments.evaluation import gait_measures as gait_measures  # the gait's reading, for scripts
 from sb3_huri.zoo import load_run
 from zerith_gym.scenarios import SCENARIOS
@@ -56,6 +57,8 @@ class CaseResult:
     case: str
     episodes: int
     survive: float
+    low: float
+    high: float
     vx_err: float
     vx: float
     lin_err: float
@@ -87,7 +90,7 @@ def main() -> None:
         backend |= {"solver_iterations": args.solver_iterations, "ls_iterations": args.ls_iterations}
 
     results: list[CaseResult] = []
-    columns = ("survive", "vx_err", "vx", "lin_err", "yaw_err", "steps/s", "alt", "1-supp")
+    columns = ("survive", "low", "high", "vx_err", "vx", "lin_err", "yaw_err", "steps/s", "alt", "1-supp")
     print(f"{'agent':<28} {'case':<22} " + " ".join(f"{c:>7}" for c in columns))
     for folder in args.agents:
         model, normalizer = load_run(folder, ENV_ID)
@@ -96,8 +99,11 @@ def main() -> None:
             metrics = evaluate(
                 model, normalizer, scenario, command, args.episodes, args.seed, backend_options=backend
             )
-            results.append(CaseResult(agent, case, args.episodes, **metrics))
-            print(f"{agent:<28} {case:<22} " + " ".join(f"{v:>7.3f}" for v in metrics.values()), flush=True)
+            low, high = wilson_interval(metrics["survive"], args.episodes)
+            result = CaseResult(agent, case, args.episodes, low=low, high=high, **metrics)
+            results.append(result)
+            values = [v for k, v in asdict(result).items() if k not in ("agent", "case", "episodes")]
+            print(f"{agent:<28} {case:<22} " + " ".join(f"{v:>7.3f}" for v in values), flush=True)
     if args.json is not None:
         args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import re
 import tempfile
 import time
@@ -36,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch as th
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case, wilson_interval
 from sb3_huri.zoo import load_run
 from sb3_huri.zoo.checkpoints import RunState
 
@@ -154,13 +153,6 @@ def status_markdown(run: Path) -> str:
         formatted = [f"{cells[0]:.0f}", f"{cells[1]:.0f}", *(f"{v:.3g}" for v in cells[2:])]
         lines.append(f"| {label} | {wall:.2f} | " + " | ".join(formatted) + " |")
     return "\n".join(lines)
-
-
-def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The 95% Wilson score interval of a share observed over `n` episodes."""
-    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(centre - half, 0.0), min(centre + half, 1.0)
 
 
 TREND_CASES = ("table1_mean", "continuous-feet", "sudden-feet", "vx_at_1.0")

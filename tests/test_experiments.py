@@ -21,7 +21,7 @@ import pytest
 
 from sb3_huri.experiments import EvalSettings, ExperimentError, run_experiment, write_report
 from sb3_huri.experiments.__main__ import main
-from sb3_huri.experiments.evaluation import PROTOCOL, RISK_CASES, risk_file
+from sb3_huri.experiments.evaluation import PROTOCOL, RISK_CASES, risk_file, wilson_interval
 from sb3_huri.experiments.layout import (
     Settings,
     atomic_write_json,
@@ -377,6 +377,18 @@ def test_confidence_intervals_use_students_t() -> None:
     assert (mean, n) == (2.0, 3) and half == pytest.approx(4.303 / math.sqrt(3))
     assert mean_ci([0.5])[:1] == (0.5,) and math.isnan(mean_ci([0.5])[1])
     assert mean_ci([])[2] == 0
+
+
+def test_survival_intervals_are_wilsons() -> None:
+    from scipy import stats
+
+    for survived, episodes in ((0, 20), (1, 20), (13, 20), (20, 20), (61, 100), (297, 300)):
+        expected = stats.binomtest(survived, episodes).proportion_ci(method="wilson")
+        low, high = wilson_interval(survived / episodes, episodes)
+        assert (low, high) == pytest.approx((expected.low, expected.high), abs=1e-3)
+    assert wilson_interval(0.0, 20)[1] > 0.1 and wilson_interval(1.0, 20)[0] < 0.9  # never empty at 0 or 1
+    with pytest.raises(ValueError, match="at least one episode"):
+        wilson_interval(0.5, 0)
 
 
 def test_ordering_reports_holds_overlaps_and_breaks() -> None:

@@ -4,6 +4,7 @@ claim (gait measures)."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
@@ -128,3 +129,19 @@ def test_shipped_huri_agent_survives_the_papers_push_tests() -> None:
         result = evaluate(model, normalizer, scenario, None, episodes=4, seed=2000, workers=1)
         assert result["survive"] == 1.0, (scenario, result)
         assert result["vx"] > 0.6, (scenario, result)
+
+
+def test_eval_agents_writes_each_case_of_each_agent_with_its_survival_interval(tmp_path, monkeypatch) -> None:
+    script = load_script("benchmarks/eval_agents.py")
+    results = tmp_path / "results.json"
+    agents = [str(REPO / "trained_agents" / algo / f"{ENV_ID}_1") for algo in AGENTS]
+    argv = ["eval_agents", "--agents", *agents, "--cases", "nominal@0.5", "sudden-feet", "--episodes", "2"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--json", str(results)])
+    script.main()
+    rows = json.loads(results.read_text())
+    assert [(row["agent"], row["case"]) for row in rows] == [
+        (f"{algo}/{ENV_ID}_1", case) for algo in AGENTS for case in ("nominal@0.5", "sudden-feet")
+    ]
+    for row in rows:
+        assert row["episodes"] == 2 and 0.0 <= row["low"] <= row["survive"] <= row["high"] <= 1.0
+        assert row["high"] - row["low"] > 0.3  # two robots know a share only roughly

@@ -26,6 +26,7 @@ plane, under sudden pushes and on uneven ground (its Fig. 5).
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import time
 from collections.abc import Mapping
@@ -76,6 +77,16 @@ def parse_case(case: str) -> tuple[str, tuple[float, float, float] | None]:
             f"unknown scenario {name!r} in case {case!r}; valid scenarios: {', '.join(SCENARIOS)}"
         )
     return name, None if not vx else (float(vx), 0.0, 0.0)
+
+
+def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The 95% Wilson score interval of a share (e.g. ``survive``) observed over ``n`` episodes: unlike the
+    normal approximation it stays within [0, 1] and is not empty at a share of 0 or 1."""
+    if n <= 0:
+        raise ValueError(f"a share needs at least one episode, got n={n}")
+    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(centre - half, 0.0), min(centre + half, 1.0)
 
 
 def gait_measures(contact: np.ndarray, min_air_steps: int = MIN_AIR_STEPS) -> tuple[float, float, float]:
