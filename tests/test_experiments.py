@@ -21,7 +21,13 @@ import pytest
 
 from sb3_huri.experiments import EvalSettings, ExperimentError, run_experiment, write_report
 from sb3_huri.experiments.__main__ import main
-from sb3_huri.experiments.evaluation import PROTOCOL, RISK_CASES, risk_file, wilson_interval
+from sb3_huri.experiments.evaluation import (
+    PROTOCOL,
+    RISK_CASES,
+    paired_difference_interval,
+    risk_file,
+    wilson_interval,
+)
 from sb3_huri.experiments.layout import (
     Settings,
     atomic_write_json,
@@ -389,6 +395,39 @@ def test_survival_intervals_are_wilsons() -> None:
     assert wilson_interval(0.0, 20)[1] > 0.1 and wilson_interval(1.0, 20)[0] < 0.9  # never empty at 0 or 1
     with pytest.raises(ValueError, match="at least one episode"):
         wilson_interval(0.5, 0)
+
+
+def _paired(both: int, only_first: int, only_second: int, neither: int) -> tuple[np.ndarray, np.ndarray]:
+    counts = (both, only_first, only_second, neither)
+    first = np.repeat([True, True, False, False], counts)
+    second = np.repeat([True, False, True, False], counts)
+    return first, second
+
+
+def test_paired_difference_interval_is_newcombes_and_covers() -> None:
+    # Newcombe (1998), "Improved confidence intervals for the difference between binomial proportions based
+    # on paired data", Statistics in Medicine 17:2635; its example of 36 / 12 / 2 / 0 of 50 pairs, method 10
+    # (hybrid score, no continuity correction): 0.0569 to 0.3404 around 0.2.
+    difference, low, high = paired_difference_interval(*_paired(36, 12, 2, 0))
+    assert difference == pytest.approx(0.2)
+    assert (low, high) == pytest.approx((0.0569, 0.3404), abs=1e-4)
+    low, high = paired_difference_interval(*_paired(36, 2, 12, 0))[1:]  # the agents swapped: mirrored
+    assert (low, high) == pytest.approx((-0.3404, -0.0569), abs=1e-4)
+    never_disagree = paired_difference_interval(*_paired(90, 0, 0, 10))
+    assert never_disagree[0] == 0.0 and never_disagree[1] < -0.01 and never_disagree[2] > 0.01
+    assert paired_difference_interval(*_paired(100, 0, 0, 0))[1:] == pytest.approx((-0.037, 0.037), abs=2e-3)
+    # Coverage of the true difference over simulated pairs of 100 robots: near the nominal 95%.
+    rng = np.random.default_rng(0)
+    for cells in ((0.6, 0.1, 0.05, 0.25), (0.3, 0.2, 0.2, 0.3)):
+        truth = cells[1] - cells[2]
+        hits = 0
+        for _ in range(600):
+            drawn = rng.choice(4, size=100, p=cells)
+            _, low, high = paired_difference_interval(drawn <= 1, (drawn == 0) | (drawn == 2))
+            hits += low <= truth <= high
+        assert 0.92 <= hits / 600 <= 0.98, (cells, hits / 600)
+    with pytest.raises(ValueError, match="two outcomes per robot"):
+        paired_difference_interval(np.ones(3, dtype=bool), np.ones(4, dtype=bool))
 
 
 def test_ordering_reports_holds_overlaps_and_breaks() -> None:

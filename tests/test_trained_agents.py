@@ -145,3 +145,44 @@ def test_eval_agents_writes_each_case_of_each_agent_with_its_survival_interval(t
     for row in rows:
         assert row["episodes"] == 2 and 0.0 <= row["low"] <= row["survive"] <= row["high"] <= 1.0
         assert row["high"] - row["low"] > 0.3  # two robots know a share only roughly
+
+
+def test_compare_agents_pairs_the_robots_and_finds_no_difference_between_an_agent_and_itself(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    script = load_script("benchmarks/compare_agents.py")
+    huri, ppo = (str(REPO / "trained_agents" / algo / f"{ENV_ID}_1") for algo in ("huri", "ppo"))
+    with pytest.raises(SystemExit):  # an unknown case is refused before anything is evaluated
+        monkeypatch.setattr(sys, "argv", ["compare_agents", huri, ppo, "--cases", "sudden-head"])
+        script.main()
+    assert "unknown scenario 'sudden-head'" in capsys.readouterr().err
+    results = tmp_path / "comparison.json"
+    argv = ["compare_agents", huri, huri, "--cases", "sudden-centroid", "--episodes", "3"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--json", str(results)])
+    script.main()
+    (row,) = json.loads(results.read_text())
+    assert row["case"] == "sudden-centroid" and row["first"] == row["second"]  # deterministic, same robots
+    assert row["difference"] == 0.0 and row["only_first"] == row["only_second"] == 0 and row["p_value"] == 1.0
+    assert row["low"] < 0.0 < row["high"]
+    assert row["vx_first"] == pytest.approx(row["vx_second"])
+
+
+def test_compare_agents_averages_table1_per_robot() -> None:
+    from scipy import stats
+
+    script = load_script("benchmarks/compare_agents.py")
+    rng = np.random.default_rng(3)
+    first = {case: (rng.random(40) < 0.8, 0.8) for case in script.TABLE1_SCENARIOS}
+    second = {case: (rng.random(40) < 0.6, 0.9) for case in script.TABLE1_SCENARIOS}
+    rows = script.compare(first, second)
+    assert [row["case"] for row in rows] == [*script.TABLE1_SCENARIOS, "table1_mean"]
+    per_robot = np.mean([first[c][0].astype(int) - second[c][0].astype(int) for c in first], axis=0)
+    half_width = stats.t.ppf(0.975, 39) * per_robot.std(ddof=1) / np.sqrt(40)
+    assert rows[-1]["difference"] == pytest.approx(per_robot.mean())
+    assert rows[-1]["high"] - rows[-1]["difference"] == pytest.approx(half_width, rel=1e-4)  # t, 39 dof
+    assert rows[-1]["first"] - rows[-1]["second"] == pytest.approx(per_robot.mean())
+    for row, case in zip(rows, script.TABLE1_SCENARIOS, strict=False):
+        disagree = first[case][0] != second[case][0]
+        assert row["only_first"] + row["only_second"] == disagree.sum()
+        expected = stats.binomtest(int((first[case][0] & disagree).sum()), int(disagree.sum())).pvalue
+        assert row["p_value"] == pytest.approx(expected)
