@@ -100,6 +100,12 @@ def main() -> None:
     parser.add_argument("--checkpoint-freq", type=int, default=500_000, help="env steps between checkpoints")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest for small nets)")
     parser.add_argument(
+        "--device",
+        default="auto",
+        help="torch device of the networks, as rl_zoo3 train --device (auto: cuda where there is one); "
+        "32 robots update faster on a many-core CPU than on a GPU (docs/training.md)",
+    )
+    parser.add_argument(
         "--workers",
         type=int,
         default=None,
@@ -155,7 +161,9 @@ def main() -> None:
     if args.resume:
         if overrides:
             print(f"resuming with changed hyperparameters: {overrides}")
-        model = HuRiPPO.load(run / f"{ENV_ID}.zip", env, tensorboard_log=args.tensorboard_log, **overrides)
+        model = HuRiPPO.load(
+            run / f"{ENV_ID}.zip", env, device=args.device, tensorboard_log=args.tensorboard_log, **overrides
+        )
         if state.timesteps != model.num_timesteps:
             print(f"warning: {run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
         restore_random_states(run)
@@ -167,7 +175,13 @@ def main() -> None:
             budget = max(budget - model.num_timesteps, 0)
     else:
         model = preset_model(
-            preset, env, method=args.algo, seed=args.seed, tensorboard_log=args.tensorboard_log, verbose=1
+            preset,
+            env,
+            method=args.algo,
+            seed=args.seed,
+            device=args.device,
+            tensorboard_log=args.tensorboard_log,
+            verbose=1,
         )
     run_args = {
         "algo": args.algo,

@@ -69,7 +69,17 @@ def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage
     with (run / "curve.csv").open("a") as file:  # a row that a stopped session wrote after its checkpoint
         file.write("320" + ",0" * (len(CURVE_COLUMNS) - 1) + "\n")
     # the rest of the budget, the run's algo and seed; hyperparameters changed as `rl_zoo3 train -params`
-    _train("--resume", str(run), "--checkpoint-freq", "128", "-params", "mirror_coef:2.0", "desired_kl:0.01")
+    _train(
+        "--resume",
+        str(run),
+        "--checkpoint-freq",
+        "128",
+        "--device",
+        "cpu",
+        "-params",
+        "mirror_coef:2.0",
+        "desired_kl:0.01",
+    )
     resumed = HuRiPPO.load(run / "Zerith1-v0.zip")
     assert (resumed.mirror_coef, resumed.desired_kl, resumed.n_steps) == (2.0, 0.01, 16)
     assert yaml.safe_load((run / "Zerith1-v0" / "config.yml").read_text())["mirror_coef"] == 2.0
