@@ -103,7 +103,7 @@ def main() -> None:
         "--device",
         default="auto",
         help="torch device of the networks, as rl_zoo3 train --device (auto: cuda where there is one); "
-        "32 robots update faster on a many-core CPU than on a GPU (docs/training.md)",
+        "with 32 robots a GPU gains nothing over the CPU (docs/performance.md)",
     )
     parser.add_argument(
         "--workers",
