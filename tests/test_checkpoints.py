@@ -3,11 +3,14 @@ by `examples/train_zerith.py --resume` (sb3_huri.zoo.checkpoints)."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -220,3 +223,46 @@ def test_a_stop_request_ends_training_at_the_next_step_with_a_checkpoint(tmp_pat
     assert RunState.read(tmp_path / "run").timesteps == 2
     assert (tmp_path / "run" / "Zerith1-v0.zip").is_file()
     env.close()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the worker processes from /proc")
+@pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
+def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_path):
+    """`timeout`, `kill -- -PGID` and batch schedulers signal every process of the job: the worker processes
+    must leave the stop to the trainer, which saves at its next step and then closes them."""
+    preset = _tiny_robust_preset(tmp_path)
+    output = tmp_path / "train.log"
+    log = output.open("w")
+    command = [*TRAIN, "-conf", str(preset), "-f", str(tmp_path), "-n", "10000000", "--workers", "1"]
+    command += ["--checkpoint-freq", "128", "--seed", "3"]
+    job = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    run = tmp_path / "huri" / "Zerith1-v0_1"
+    try:
+        deadline = time.monotonic() + 300
+        while not (run / "Zerith1-v0" / "state.json").is_file():
+            assert job.poll() is None and time.monotonic() < deadline, output.read_text()[-3000:]
+            time.sleep(0.5)
+        workers = _children(job.pid)
+        os.killpg(job.pid, signal.SIGTERM)
+        assert job.wait(timeout=120) == 0, output.read_text()[-3000:]
+    finally:
+        if job.poll() is None:
+            os.killpg(job.pid, signal.SIGKILL)
+        log.close()
+    state = RunState.read(run)
+    assert state.timesteps >= 128 and state.sessions[-1]["to_timesteps"] == state.timesteps
+    assert HuRiPPO.load(run / "Zerith1-v0.zip").num_timesteps == state.timesteps
+    assert workers, "the trainer should have started a worker process"
+    for pid in workers:  # closed by the trainer, not left behind
+        assert not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text()
+
+
+def _children(pid: int) -> list[int]:
+    """The process ids whose parent is `pid` (Linux /proc)."""
+    children = []
+    for status in Path("/proc").glob("[0-9]*/status"):
+        with contextlib.suppress(OSError):
+            fields = dict(line.split(":\t", 1) for line in status.read_text().splitlines() if ":\t" in line)
+            if int(fields.get("PPid", "0")) == pid:
+                children.append(int(status.parent.name))
+    return children

@@ -178,7 +178,11 @@ def _serve(
     physics_threads: int,
 ) -> None:
     """A worker's life: build its batch of robots [rows), then answer messages until `close`."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle: it closes the pool
+    # Signals to the caller's process group (Ctrl-C, `timeout`, `kill -- -PGID`) are the caller's to handle:
+    # it stops at its next step, saves, and closes the pool. A worker that took them would die first.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(os, "setpgid"):
+        os.setpgid(0, 0)
     try:
         shared = _views(block, num_robots)
         batch = ZerithBatch(rows[1] - rows[0], options, physics_threads, first_robot=rows[0])
