@@ -117,14 +117,15 @@ def test_load_run_names_the_missing_model(tmp_path):
         load_run(tmp_path, "Zerith1-v0")
 
 
-def test_shipped_huri_agent_survives_the_papers_push_tests() -> None:
-    """The shipped HuRi agent was chosen for surviving Table 1 (docs/training.md, "Shipped agents"): on the
-    paper's sudden pushes at the centroid and the side impact, every one of 4 robots walks its 20 s at the
-    1 m/s command. A change to the env that breaks what it learned fails here."""
+@pytest.mark.parametrize("algo", list(AGENTS))
+def test_shipped_agent_survives_the_papers_push_tests(algo: str) -> None:
+    """Both shipped agents were trained with the robust recipe and survive Table 1 (docs/training.md,
+    "Shipped agents"): on the paper's sudden pushes at the centroid and the side impact, every one of 4 robots
+    walks its 20 s at the 1 m/s command. A change to the env that breaks what they learned fails here."""
     from sb3_huri.experiments.evaluation import evaluate
     from sb3_huri.zoo import load_run
 
-    model, normalizer = load_run(REPO / "trained_agents" / "huri" / f"{ENV_ID}_1", ENV_ID, normalized=True)
+    model, normalizer = load_run(REPO / "trained_agents" / algo / f"{ENV_ID}_1", ENV_ID, normalized=True)
     for scenario in ("sudden-centroid", "side-impact"):
         result = evaluate(model, normalizer, scenario, None, episodes=4, seed=2000, workers=1)
         assert result["survive"] == 1.0, (scenario, result)
