@@ -3,7 +3,6 @@ by `examples/train_zerith.py --resume` (sb3_huri.zoo.checkpoints)."""
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import os
@@ -242,7 +241,7 @@ def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_p
         while not (run / "Zerith1-v0" / "state.json").is_file():
             assert job.poll() is None and time.monotonic() < deadline, output.read_text()[-3000:]
             time.sleep(0.5)
-        workers = _children(job.pid)
+        workers = [int(pid) for pid in Path(f"/proc/{job.pid}/task/{job.pid}/children").read_text().split()]
         os.killpg(job.pid, signal.SIGTERM)
         assert job.wait(timeout=120) == 0, output.read_text()[-3000:]
     finally:
@@ -255,14 +254,3 @@ def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_p
     assert workers, "the trainer should have started a worker process"
     for pid in workers:  # closed by the trainer, not left behind
         assert not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text()
-
-
-def _children(pid: int) -> list[int]:
-    """The process ids whose parent is `pid` (Linux /proc)."""
-    children = []
-    for status in Path("/proc").glob("[0-9]*/status"):
-        with contextlib.suppress(OSError):
-            fields = dict(line.split(":\t", 1) for line in status.read_text().splitlines() if ":\t" in line)
-            if int(fields.get("PPid", "0")) == pid:
-                children.append(int(status.parent.name))
-    return children
