@@ -30,21 +30,25 @@ import re
 import tempfile
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch as th
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case, wilson_interval
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, wilson_interval
+from sb3_huri.experiments.robustness import (
+    CASES,
+    NOMINAL,
+    read_rows,
+    robustness_row,
+    training_hardware,
+    wall_time_at,
+    write_rows,
+)
 from sb3_huri.zoo import load_run
 from sb3_huri.zoo.checkpoints import RunState
 
 ENV_ID = "Zerith1-v0"
-NOMINAL = ("nominal@1.0", "nominal@0.5")
-CASES = (*TABLE1_SCENARIOS, "side-impact", *NOMINAL)
-COLUMNS = ("timesteps", "wall_s", "hardware", "episodes", *CASES, "table1_mean", "vx_at_1.0", "eval_s")
-EARLY_EPISODES = 10
-"""Episodes per case of the rows written before the file had an `episodes` column."""
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -62,25 +66,6 @@ def checkpoints(run: Path) -> dict[int, tuple[Path, Path]]:
     return dict(sorted(found.items()))
 
 
-def wall_time_at(run: Path, steps: int) -> float:
-    """The run's training wall time when it reached `steps` (the curve's nearest row at or before it)."""
-    wall = 0.0
-    with (run / "curve.csv").open() as file:
-        for row in csv.DictReader(file):
-            if int(row["timesteps"]) > steps:
-                break
-            wall = float(row["wall_s"])
-    return wall
-
-
-def training_hardware(run: Path, steps: int) -> str:
-    """The hardware of the training session that reached `steps` (`state.json`)."""
-    for session in RunState.read(run).sessions:
-        if session["from_timesteps"] < steps <= session.get("to_timesteps", steps):
-            return session["hardware"]
-    return "unknown"
-
-
 def evaluate_checkpoint(
     model_file: Path, normalizer_file: Path, episodes: int, seed: int
 ) -> dict[str, float]:
@@ -91,15 +76,7 @@ def evaluate_checkpoint(
         (layout / f"{ENV_ID}.zip").symlink_to(model_file.resolve())
         (layout / ENV_ID / "vecnormalize.pkl").symlink_to(normalizer_file.resolve())
         model, normalizer = load_run(layout, ENV_ID)
-    row: dict[str, float] = {}
-    for case in CASES:
-        scenario, command = parse_case(case)
-        metrics = evaluate(model, normalizer, scenario, command, episodes, seed)
-        row[case] = round(metrics["survive"], 3)
-        if case == "nominal@1.0":
-            row["vx_at_1.0"] = round(metrics["vx"], 3)
-    row["table1_mean"] = round(sum(row[c] for c in TABLE1_SCENARIOS) / len(TABLE1_SCENARIOS), 3)
-    return row
+    return robustness_row(model, normalizer, episodes, seed)
 
 
 STATUS_COLUMNS = (
@@ -245,29 +222,6 @@ def ship_markdown(rows: list[dict[str, str]]) -> str:
         + "; ".join(unmet_ship_criteria(rows[-1]))
         + "."
     )
-
-
-def read_rows(run: Path) -> dict[int, dict[str, str]]:
-    """The evaluated rows of a run's `robustness.csv` by step, each with its `episodes` per case."""
-    path = run / "robustness.csv"
-    if not path.is_file():
-        return {}
-    with path.open() as file:
-        rows = {int(row["timesteps"]): row for row in csv.DictReader(file)}
-    for row in rows.values():
-        row["episodes"] = row.get("episodes") or str(EARLY_EPISODES)
-    return dict(sorted(rows.items()))
-
-
-def write_rows(run: Path, rows: dict[int, dict[str, Any]]) -> None:
-    """Write every row, by step, through a temporary file: an interrupted write leaves the old file."""
-    path = run / "robustness.csv"
-    partial = path.with_suffix(".csv.tmp")
-    with partial.open("w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(row for _, row in sorted(rows.items()))
-    partial.replace(path)
 
 
 def curve_markdown(run: Path) -> str:

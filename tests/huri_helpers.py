@@ -1,5 +1,7 @@
-"""Helpers shared by the HuRiPPO tests: a Pendulum with an asymmetric observation, a logger writer that
-keeps every value, and an exact comparison of state dicts."""
+"""Helpers shared by the tests: a Pendulum with an asymmetric observation, a logger writer that keeps every
+value, an exact comparison of state dicts, and a tiny version of the robust recipe's preset."""
+
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -7,6 +9,8 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import KVWriter
+
+ROOT = Path(__file__).resolve().parent.parent
 
 SMALL = dict(n_steps=32, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
 
@@ -57,3 +61,21 @@ def state_dicts_equal(first: dict, second: dict) -> None:
             th.testing.assert_close(first[key], second[key], rtol=0, atol=0, msg=key)
         else:
             assert first[key] == second[key], key
+
+
+def tiny_robust_preset(folder: Path, n_timesteps: int = 384, name: str = "tiny.yml") -> Path:
+    """`hyperparams/huri_robust.yml` shrunk to seconds of training (4 robots, 16 steps each per rollout, one
+    epoch, a 16-unit network), with a curriculum that may rise a stage per rollout, held back only by falls;
+    written to `folder/name` as an RL Zoo hyperparameter file."""
+    import yaml
+
+    presets = yaml.safe_load((ROOT / "hyperparams" / "huri_robust.yml").read_text())
+    preset = presets["Zerith1-v0"]
+    preset.update(n_envs=4, n_steps=16, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
+    preset["n_timesteps"] = n_timesteps
+    preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
+        steps=64, stages=4, max_fall_rate=1.0, gate_episodes=1
+    )
+    path = folder / name
+    path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
+    return path

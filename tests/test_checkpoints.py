@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 import torch as th
 import yaml
+from huri_helpers import tiny_robust_preset
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
@@ -37,20 +39,6 @@ ROOT = Path(__file__).resolve().parent.parent
 TRAIN = [sys.executable, str(ROOT / "examples" / "train_zerith.py")]
 
 
-def _tiny_robust_preset(folder: Path) -> Path:
-    presets = yaml.safe_load((ROOT / "hyperparams" / "huri_robust.yml").read_text())
-    preset = presets["Zerith1-v0"]
-    preset.update(n_envs=4, n_steps=16, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
-    preset["n_timesteps"] = 384
-    # A curriculum that may rise a stage per rollout, held back only by falls.
-    preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
-        steps=64, stages=4, max_fall_rate=1.0, gate_episodes=1
-    )
-    path = folder / "tiny.yml"
-    path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
-    return path
-
-
 def _train(*args: str) -> None:
     result = subprocess.run(
         [*TRAIN, "--workers", "0", *args], capture_output=True, text=True, timeout=600, env=os.environ.copy()
@@ -59,7 +47,7 @@ def _train(*args: str) -> None:
 
 
 def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage(tmp_path):
-    preset = _tiny_robust_preset(tmp_path)
+    preset = tiny_robust_preset(tmp_path)
     _train("-conf", str(preset), "-f", str(tmp_path), "-n", "256", "--checkpoint-freq", "128", "--seed", "3")
     run = tmp_path / "huri" / "Zerith1-v0_1"
     first = RunState.read(run)
@@ -117,7 +105,7 @@ def test_the_curve_skips_a_torn_row_and_is_cut_back_whole(tmp_path):
 
 
 def test_random_states_come_back_from_a_checkpoint(tmp_path):
-    preset = _tiny_robust_preset(tmp_path)
+    preset = tiny_robust_preset(tmp_path)
     _train("-conf", str(preset), "-f", str(tmp_path), "-n", "64", "--checkpoint-freq", "64")
     run = tmp_path / "huri" / "Zerith1-v0_1"
     assert restore_random_states(run)
@@ -210,17 +198,32 @@ def test_resuming_a_folder_without_a_model_is_a_clear_error(tmp_path):
     assert result.returncode != 0 and "no Zerith1-v0.zip there" in result.stderr
 
 
+class _StopAt(BaseCallback):
+    """Requests the checkpoint's stop at the given env step, as a SIGTERM handler would."""
+
+    def __init__(self, checkpoint: RunCheckpoint, steps: int) -> None:
+        super().__init__()
+        self.checkpoint, self.steps = checkpoint, steps
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps == self.steps:
+            self.checkpoint.request_stop()
+        return True
+
+
 @pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
-def test_a_stop_request_ends_training_at_the_next_step_with_a_checkpoint(tmp_path):
-    """What `kill` (SIGTERM) does to `examples/train_zerith.py`: the run stops and saves its newest state."""
+def test_a_stop_request_ends_training_after_the_rollout_under_way_with_a_checkpoint(tmp_path):
+    """What `kill` (SIGTERM) does to a training: the rollout under way is collected and learnt from, then
+    the run saves a checkpoint that holds exactly the steps its model learnt from."""
     env = zerith_gym.make_vec_env(2, seed=0, workers=0)
     model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
     checkpoint = RunCheckpoint(tmp_path / "run", {"n_envs": 2}, {"seed": 0}, every_steps=10_000)
-    checkpoint.request_stop()
-    model.learn(1000, callback=checkpoint)
-    assert model.num_timesteps == 2  # one step of 2 robots, then the stop
-    assert RunState.read(tmp_path / "run").timesteps == 2
-    assert (tmp_path / "run" / "Zerith1-v0.zip").is_file()
+    model.learn(1000, callback=CallbackList([_StopAt(checkpoint, 22), checkpoint]))
+    assert model._n_updates == 2  # the second rollout (steps 17-32) was finished and learnt from
+    assert model.num_timesteps == 34  # one step of the third rollout, then the stop
+    assert RunState.read(tmp_path / "run").timesteps == 32 == checkpoint.saved_steps
+    saved = HuRiPPO.load(tmp_path / "run" / "Zerith1-v0.zip")
+    assert saved.num_timesteps == 32 and saved._n_updates == 2
     env.close()
 
 
@@ -229,7 +232,7 @@ def test_a_stop_request_ends_training_at_the_next_step_with_a_checkpoint(tmp_pat
 def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_path):
     """`timeout`, `kill -- -PGID` and batch schedulers signal every process of the job: the worker processes
     must leave the stop to the trainer, which saves at its next step and then closes them."""
-    preset = _tiny_robust_preset(tmp_path)
+    preset = tiny_robust_preset(tmp_path)
     output = tmp_path / "train.log"
     log = output.open("w")
     command = [*TRAIN, "-conf", str(preset), "-f", str(tmp_path), "-n", "10000000", "--workers", "1"]

@@ -36,8 +36,8 @@ from sb3_huri.experiments.layout import (
     run_folder,
 )
 from sb3_huri.experiments.report import _ordering, mean_ci, t_quantile
-from sb3_huri.experiments.run_files import prune_checkpoints
 from sb3_huri.zoo import load_run, next_run_folder
+from sb3_huri.zoo.checkpoints import RunState
 from sb3_huri.zoo.curve import read_curve
 
 ENV = "Zerith1-v0"
@@ -184,16 +184,14 @@ def test_report_sets_the_grid_beside_the_papers_numbers(local_grid) -> None:
 
 # ----------------------------------------------------------------------------------------- interruption
 def _wait_for_checkpoint(out: Path, method: str, seed: int, at_least: int, process: subprocess.Popen) -> int:
-    """Poll the run's status until it has a checkpoint of ``at_least`` steps (the run still training)."""
+    """Poll the run folder until it has a checkpoint of ``at_least`` steps (the run still training)."""
+    folder = run_folder(out, ENV, method, seed)
     for _ in range(6000):
         assert process.poll() is None, process.communicate()
-        try:
-            status = status_of(out, method, seed)
-        except (ExperimentError, FileNotFoundError):
-            status = None
-        if status is not None and (status.checkpoint or 0) >= at_least:
-            assert status.trained_to is None, "the run finished before it could be interrupted"
-            return status.checkpoint
+        steps = RunState.read(folder).timesteps
+        if steps >= at_least:
+            assert steps < 8192, "the run finished before it could be interrupted"
+            return steps
         time.sleep(0.05)
     raise AssertionError("no checkpoint appeared")
 
@@ -237,29 +235,11 @@ def test_a_killed_or_interrupted_command_continues_from_the_last_checkpoint(
     assert model.num_timesteps == 8192
     steps = [row["timesteps"] for row in read_curve(run_folder(out, ENV, "huri-no-rnd", 5))]
     assert steps == list(range(64, 8192 + 1, 64))  # each rollout once: the rows after a checkpoint are redone
-    checkpoints = sorted(p.name for p in (run_folder(out, ENV, "huri-no-rnd", 5) / "checkpoints").iterdir())
-    assert checkpoints == [
-        "model_7680.zip",
-        "model_8192.zip",
-        "vecnormalize_7680.pkl",
-        "vecnormalize_8192.pkl",
-    ]
+    state = RunState.read(run_folder(out, ENV, "huri-no-rnd", 5))  # the trainer's own record of the sessions
+    assert [s["from_timesteps"] for s in state.sessions] == [0, *status.resumed_from]
     # 4. Finished: the command skips it.
     again = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
     assert again.returncode == 0 and "1 finished earlier, 0 to train or evaluate" in again.stdout
-
-
-def test_pruning_finishes_a_checkpoint_half_deleted_by_a_kill(tmp_path: Path) -> None:
-    folder = tmp_path / "run"
-    (folder / "checkpoints").mkdir(parents=True)
-    names = ["vecnormalize_512.pkl", "model_1024.zip", "vecnormalize_1024.pkl", "model_1536.zip"]
-    names += ["vecnormalize_1536.pkl", "model_2048.zip", "vecnormalize_2048.pkl"]
-    names += [".model_2560.zip.tmp"]  # a save cut short by a kill
-    for name in names:  # model_512.zip is gone: a kill came between the checkpoint's two files
-        (folder / "checkpoints" / name).write_bytes(b"x")
-    prune_checkpoints(folder, keep=2048)
-    left = sorted(p.name for p in (folder / "checkpoints").iterdir())
-    assert left == ["model_1536.zip", "model_2048.zip", "vecnormalize_1536.pkl", "vecnormalize_2048.pkl"]
 
 
 # ------------------------------------------------------------------------------------------------- ray

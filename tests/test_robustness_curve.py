@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
 from sb3_huri.zoo.curve import append_row
 from tests.test_trained_agents import load_script
 
@@ -37,18 +38,18 @@ def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoin
     run = tmp_path / "run"
     _fake_run(run, checkpoint_steps=[100, 200, 300, 400, 500, 700], newest=800)
     old = [  # written before the `episodes` column: 10 episodes per case
-        {"timesteps": 100, "wall_s": 1, "hardware": "test", **dict.fromkeys(curve.CASES, 0.1)},
-        {"timesteps": 250, "wall_s": 2.5, "hardware": "test", **dict.fromkeys(curve.CASES, 0.2)},
+        {"timesteps": 100, "wall_s": 1, "hardware": "test", **dict.fromkeys(CASES, 0.1)},
+        {"timesteps": 250, "wall_s": 2.5, "hardware": "test", **dict.fromkeys(CASES, 0.2)},
     ]
     with (run / "robustness.csv").open("w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=[c for c in curve.COLUMNS if c != "episodes"])
+        writer = csv.DictWriter(file, fieldnames=[c for c in COLUMNS if c != "episodes"])
         writer.writeheader()
         writer.writerows({**row, "table1_mean": 0.1, "vx_at_1.0": 0.9, "eval_s": 1} for row in old)
     evaluated = []
 
     def evaluate_checkpoint(model_file, normalizer_file, episodes, seed):
         evaluated.append((model_file.name, episodes))
-        return {**dict.fromkeys(curve.CASES, CASE_VALUE), "table1_mean": CASE_VALUE, "vx_at_1.0": 1.0}
+        return {**dict.fromkeys(CASES, CASE_VALUE), "table1_mean": CASE_VALUE, "vx_at_1.0": 1.0}
 
     monkeypatch.setattr(curve, "evaluate_checkpoint", evaluate_checkpoint)
     docs = tmp_path / "training.md"
@@ -65,7 +66,7 @@ def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoin
         ("rl_model_700_steps.zip", 50),
         ("Zerith1-v0.zip", 50),
     ]
-    rows = curve.read_rows(run)
+    rows = read_rows(run)
     assert list(rows) == [100, 250, 700, 800]
     assert [rows[s]["episodes"] for s in rows] == ["50", "10", "50", "50"]
     assert float(rows[250]["sudden-feet"]) == 0.2 and float(rows[700]["sudden-feet"]) == CASE_VALUE
@@ -98,7 +99,7 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     _fake_run(fork, checkpoint_steps=[], newest=500)
 
     def row(steps: int, mean: float) -> dict:
-        cases = dict.fromkeys(curve.CASES, mean)
+        cases = dict.fromkeys(CASES, mean)
         return {
             "timesteps": steps,
             "wall_s": 1.0,
@@ -108,11 +109,11 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
             "vx_at_1.0": 1.0,
         }
 
-    curve.write_rows(run, {s: row(s, 0.5) for s in (100, 300)})
-    curve.write_rows(fork, {s: row(s, 0.5) for s in (100, 300)})
+    write_rows(run, {s: row(s, 0.5) for s in (100, 300)})
+    write_rows(fork, {s: row(s, 0.5) for s in (100, 300)})
     with pytest.raises(ValueError, match="no evaluated checkpoint beyond"):
         curve.plot_curve(run, tmp_path / "curve.png", (fork,))
-    curve.write_rows(fork, {**curve.read_rows(fork), 500: row(500, 0.7)})
+    write_rows(fork, {**read_rows(fork), 500: row(500, 0.7)})
     figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,) * 8)
     assert (tmp_path / "curve.png").stat().st_size > 10_000
     fork_lines = [line for line in figure.axes[0].get_lines() if line.get_label() == "fork: Table-1 mean"]
@@ -122,7 +123,7 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     _fake_run(ppo, checkpoint_steps=[], newest=400)
     with pytest.raises(ValueError, match="no evaluated checkpoint to plot"):
         curve.plot_curve(run, tmp_path / "curve.png", versus=(ppo,))
-    curve.write_rows(ppo, {s: row(s, m) for s, m in ((200, 0.1), (400, 0.3))})
+    write_rows(ppo, {s: row(s, m) for s, m in ((200, 0.1), (400, 0.3))})
     figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,), versus=(ppo,))
     (versus_line,) = [
         line
@@ -133,8 +134,8 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     assert list(versus_line.get_ydata()) == [0.1, 0.3]
     assert versus_line.get_linestyle() == "--"
     # both trained on from step 300: the run's row at 500 is its own model, not the fork's
-    curve.write_rows(run, {**curve.read_rows(run), 500: row(500, 0.6)})
-    own = curve.fork_own_rows(curve.read_rows(run), curve.read_rows(fork))
+    write_rows(run, {**read_rows(run), 500: row(500, 0.6)})
+    own = curve.fork_own_rows(read_rows(run), read_rows(fork))
     assert [(step, float(r["table1_mean"])) for step, r in own] == [(300, 0.5), (500, 0.7)]
 
 

@@ -19,6 +19,7 @@ from sb3_huri.experiments.layout import (
     run_folder,
     validate_grid,
 )
+from sb3_huri.zoo.checkpoints import RunState
 from zerith_gym.workers import available_cores
 
 EXECUTION_BACKENDS = ("local", "ray")
@@ -140,17 +141,14 @@ class _Progress:
         for task in tasks:
             key = (task.method, task.seed)
             try:
-                status = read_status(
-                    run_folder(self.out, self.settings.env, task.method, task.seed),
-                    task.method,
-                    task.seed,
-                    self.settings.env,
-                )
+                folder = run_folder(self.out, self.settings.env, task.method, task.seed)
+                status = read_status(folder, task.method, task.seed, self.settings.env)
             except ExperimentError:
                 continue
             total = self.settings.timesteps
             now = time.time()
             if status.state == "training":
+                status.steps = max(status.steps, RunState.read(folder).timesteps)  # the newest checkpoint
                 steps0, t0 = self.first.setdefault(key, (status.steps, now))
                 mark = ("training", min(10, 10 * status.steps // total))
                 rate = (status.steps - steps0) / (now - t0) if now > t0 else 0.0

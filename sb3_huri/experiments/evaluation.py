@@ -25,11 +25,13 @@ plane, under sudden pushes and on uneven ground (its Fig. 5).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
+import random
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -178,6 +180,24 @@ class RiskTrace:
         return {"beta": self.beta, "iqr": self.iqr, "atoms": self.atoms, "force": self.force}
 
 
+@contextlib.contextmanager
+def random_states_kept() -> Iterator[None]:
+    """Restore the global random states of Python, NumPy and torch (CPU and CUDA) on leaving: an evaluation
+    inside a training process leaves what the training draws next unchanged."""
+    import torch as th
+
+    python, numpy, torch = random.getstate(), np.random.get_state(), th.get_rng_state()  # noqa: NPY002
+    cuda = th.cuda.get_rng_state_all() if th.cuda.is_available() else None
+    try:
+        yield
+    finally:
+        random.setstate(python)
+        np.random.set_state(numpy)  # noqa: NPY002
+        th.set_rng_state(torch)
+        if cuda is not None:
+            th.cuda.set_rng_state_all(cuda)
+
+
 def evaluate(
     model: Any,
     normalizer: Any | None,
@@ -286,9 +306,18 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
 EVALUATION_FILE = "evaluation.json"
 
 
-def risk_file(folder: Path, case: str) -> Path:
-    """Where the risk trace of ``case`` is kept in a run folder (``risk_nominal-1.npz`` for ``nominal@1``)."""
-    return folder / f"risk_{case.replace('@', '-')}.npz"
+def risk_file(folder: Path, case: str, prefix: str = "") -> Path:
+    """Where the risk trace of ``case`` is kept in a run folder (``risk_nominal-1.npz`` for ``nominal@1``;
+    ``<prefix>risk_nominal-1.npz`` to tell the traces of several evaluations apart)."""
+    return folder / f"{prefix}risk_{case.replace('@', '-')}.npz"
+
+
+def write_trace(target: Path, trace: RiskTrace) -> None:
+    """Save ``trace``'s arrays at ``target`` (``.npz``) through a temporary file: no torn file on a kill."""
+    temporary = target.with_name(f".{target.name}.tmp")
+    with open(temporary, "wb") as f:
+        np.savez(f, **trace.arrays())
+    os.replace(temporary, target)
 
 
 def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: int = 0) -> RunStatus:
@@ -328,11 +357,7 @@ def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: i
         )
         trace = metrics.pop("trace", None)
         if trace is not None:
-            target = risk_file(folder, case)
-            temporary = target.with_name(f".{target.name}.tmp")
-            with open(temporary, "wb") as f:
-                np.savez(f, **trace.arrays())
-            os.replace(temporary, target)
+            write_trace(risk_file(folder, case), trace)
         done[case] = metrics
         atomic_write_json(path, {"settings": wanted, "cases": done})
         status.eval_done, status.eval_seconds = len(done), seconds + time.time() - began

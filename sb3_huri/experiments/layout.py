@@ -4,17 +4,18 @@ An experiment folder ``DIR`` holds::
 
     DIR/experiment.json                       settings shared by every run, and the grid (method, seed)
     DIR/<method>/<env>_<seed + 1>/            one run, in RL Zoo's layout (RL Zoo's run ids start at 1)
-        <env>.zip, <env>/{config,args}.yml, <env>/vecnormalize.pkl    the trained model (when trained)
-        status.json                           steps done, last checkpoint, trained, evaluated, times
-        checkpoints/model_<steps>.zip, checkpoints/vecnormalize_<steps>.pkl
+        <env>.zip, <env>/{config,args}.yml, <env>/vecnormalize.pkl    the newest checkpoint
+        <env>/state.json, <env>/rng.pt        its steps, curriculum stage, sessions and random states
+        status.json                           the grid's record: trained to, resumptions, evaluated, times
         curve.csv                             the learning curve (sb3_huri.zoo.curve; Fig. 3 analog)
         evaluation.json                       metrics per evaluation case (``evaluation.PROTOCOL``)
         risk_<case>.npz                       the critic's trace in the risk cases (the Fig. 5 analog)
     DIR/report.md, DIR/*.png                  written by ``python -m sb3_huri.experiments report DIR``
 
 Every JSON file is replaced atomically (written to a temporary file, then ``os.replace``), so a kill at
-any moment leaves either the old or the new version, never a torn one. A run's ``status.json`` names a
-checkpoint only once both of its files are complete: that is what a resumed run continues from.
+any moment leaves either the old or the new version, never a torn one. A run's folder is the one format
+every training of the package writes (``sb3_huri.experiments.trainer``): a resumed run continues from
+its newest checkpoint, which ``state.json`` completes.
 """
 
 from __future__ import annotations
@@ -206,7 +207,7 @@ class RunStatus:
     seed: int
     env: str
     checkpoint: int | None = None
-    """Steps of the last complete checkpoint (``checkpoints/model_<steps>.zip`` and its normalizer)."""
+    """Steps of the newest checkpoint when the status was written (``<env>/state.json`` has the latest)."""
     steps: int = 0
     """Steps trained so far (ahead of the checkpoint while training runs)."""
     trained_to: int | None = None

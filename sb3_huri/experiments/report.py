@@ -96,12 +96,16 @@ class RunResult:
     @property
     def final_return(self) -> float:
         """Mean of SB3's ``ep_rew_mean`` over the last tenth of training (NaN without episodes)."""
-        rows = [row for row in self.curve if math.isfinite(row["ep_return"])]
-        if not rows:
-            return math.nan
-        last = rows[-1]["timesteps"]
-        tail = [row["ep_return"] for row in rows if row["timesteps"] >= 0.9 * last]
-        return float(np.mean(tail))
+        return final_return(self.curve)
+
+
+def final_return(curve: Sequence[dict[str, float]]) -> float:
+    """Mean of a learning curve's ``ep_return`` over the last tenth of its steps (NaN without episodes)."""
+    rows = [row for row in curve if math.isfinite(row["ep_return"])]
+    if not rows:
+        return math.nan
+    last = rows[-1]["timesteps"]
+    return float(np.mean([row["ep_return"] for row in rows if row["timesteps"] >= 0.9 * last]))
 
 
 def load_results(out: Path) -> tuple[Settings, list[RunResult]]:
@@ -120,14 +124,18 @@ def load_results(out: Path) -> tuple[Settings, list[RunResult]]:
         for case in RISK_CASES:
             path = risk_file(folder, case)
             if path.exists():
-                try:
-                    with np.load(path) as arrays:
-                        result.traces[case] = {key: arrays[key] for key in arrays.files}
-                except (OSError, ValueError) as error:
-                    message = f"{path} is corrupt ({error}); delete it to evaluate anew"
-                    raise ExperimentError(message) from error
+                result.traces[case] = read_trace(path)
         results.append(result)
     return settings, results
+
+
+def read_trace(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a risk trace file (``evaluation.write_trace``); ExperimentError if it is corrupt."""
+    try:
+        with np.load(path) as arrays:
+            return {key: arrays[key] for key in arrays.files}
+    except (OSError, ValueError) as error:
+        raise ExperimentError(f"{path} is corrupt ({error}); delete it to evaluate anew") from error
 
 
 def _by_method(results: Sequence[RunResult]) -> dict[str, list[RunResult]]:

@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.zoo.runs import load_checkpoint as load_checkpoint
 from sb3_huri.zoo.runs import load_run as load_run
 from sb3_huri.zoo.runs import next_run_folder as next_run_folder
 from sb3_huri.zoo.runs import save_run as save_run

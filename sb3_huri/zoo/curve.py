@@ -1,7 +1,7 @@
 """A run's learning curve, ``curve.csv``: one row per rollout, appended, read, and cut back on resuming.
 
-Every training of this package writes the same curve (``examples/train_zerith.py``'s long runs through
-``sb3_huri.zoo.checkpoints.RunCheckpoint``, the experiment grid through its bookkeeping): steps, cumulative
+Every training of this package writes the same curve (``sb3_huri.experiments.trainer``, through
+``sb3_huri.zoo.checkpoints.RunCheckpoint``): steps, cumulative
 training wall time, the recent episodes' mean length and return (what SB3 logs as ``ep_len_mean`` and
 ``ep_rew_mean``), the share of the rollout's ended episodes that fell, the curriculum's scale, and the
 previous update's approximate KL, clip fraction, critic explained variance, action noise and learning rates.

@@ -87,7 +87,6 @@ def load_run(
     observations acts wrongly without them); False requires that there are none. Errors say what is missing.
     """
     import gymnasium as gym
-    from stable_baselines3.common.vec_env import VecNormalize
 
     from sb3_huri.zoo import register_environments
 
@@ -111,11 +110,25 @@ def load_run(
         )
     if normalized is False and stats.is_file():
         raise ValueError(f"--unnormalized given, but the run normalized its observations ({stats} exists)")
-    model = load_model(model_path)
-    if not stats.is_file():
+    return load_checkpoint(model_path, stats if stats.is_file() else None)
+
+
+def load_checkpoint(
+    model_file: str | os.PathLike, normalizer_file: str | os.PathLike | None
+) -> tuple[Any, Any | None]:
+    """A model file (on the CPU) and its observation normalizer file, wherever they lie: a run folder's
+    newest model or one of its kept checkpoints (``checkpoints/rl_model_<steps>_steps.zip`` beside
+    ``rl_model_vecnormalize_<steps>_steps.pkl``). ``normalizer_file`` None: a run without ``VecNormalize``.
+    The statistics are unpickled without building an environment; ValueError if they are not VecNormalize's.
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    model = load_model(model_file)
+    if normalizer_file is None:
         return model, None
-    with open(stats, "rb") as file:
+    with open(normalizer_file, "rb") as file:
         normalizer = pickle.load(file)
     if not isinstance(normalizer, VecNormalize):
-        raise ValueError(f"{stats} holds a {type(normalizer).__name__}, not VecNormalize statistics")
+        kind = type(normalizer).__name__
+        raise ValueError(f"{normalizer_file} holds a {kind}, not VecNormalize statistics")
     return model, normalizer

@@ -1,0 +1,185 @@
+"""The training campaign: the queue's unfinished entries trained in the background, across sessions.
+
+    python -m sb3_huri.experiments campaign                       # train the queue (runs/campaign.yml)
+    python -m sb3_huri.experiments campaign --max-wall-minutes 150
+    python -m sb3_huri.experiments campaign --status              # where every entry stands
+
+One campaign process at a time (a lock beside the queue file) runs up to ``--slots`` entries at once, each
+in a child process pinned to a core of its own (two trainings of one core each train more samples per
+second on 2 cores than one training of both: ``benchmarks/bench_core_split.py``). It takes the entries in
+the queue's order, skipping those done, and never starts an entry while an earlier entry of the same run
+folder is unfinished (the folder trains to 157M and is evaluated there before it trains on). An entry
+trains with ``sb3_huri.experiments.trainer.train_run`` up to its steps, with a robustness row every
+``robustness_every`` steps, then is evaluated once (``final_evaluation.evaluate_entry``). Each child logs
+to ``<run>/train.log``.
+
+SIGTERM or Ctrl-C to the campaign stops every child after the rollout under way, with a checkpoint; so
+does ``--max-wall-minutes``. The same command continues every entry from its newest checkpoint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.queue import CampaignEntry, load_queue
+
+DEFAULT_QUEUE = Path("runs") / "campaign.yml"
+CHECKPOINT_FREQ = 1_000_000
+LOG_FILE = "train.log"
+
+
+def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: int | None = None) -> str:
+    """Train `entry` up to its steps (resuming its run), then evaluate it; returns its state afterwards.
+
+    A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued."""
+    from sb3_huri.experiments.final_evaluation import evaluate_entry
+    from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
+    from sb3_huri.zoo import read_preset
+
+    if entry.state() in ("new", "train"):
+        defaults = entry.defaults
+        request = RunRequest(
+            run=entry.run, preset=read_preset("Zerith1-v0", entry.conf), method=entry.method,
+            seed=entry.seed, until=entry.steps,
+        )  # fmt: skip
+        options = TrainingOptions(
+            checkpoint_freq=CHECKPOINT_FREQ,
+            robustness=RobustnessSchedule(
+                defaults.robustness_every,
+                defaults.robustness_episodes,
+                defaults.robustness_seed,
+                defaults.episode_steps,
+            ),
+            max_wall_s=max_wall_s, workers=workers,
+        )  # fmt: skip
+        train_run(request, options)
+    if entry.state() == "evaluate":
+        evaluate_entry(entry, workers=workers, episode_steps=entry.defaults.episode_steps)
+    return entry.state()
+
+
+def runnable(entries: list[CampaignEntry], busy: set[Path], failed: set[str]) -> list[CampaignEntry]:
+    """The entries that may start now, in queue order: unfinished, not failed in this campaign, their run
+    folder not in `busy`, and no earlier entry of the same folder unfinished."""
+    waiting: set[Path] = set(busy)
+    ready = []
+    for entry in entries:
+        if entry.name in failed:
+            waiting.add(entry.run)
+            continue
+        if entry.state() == "done":
+            continue
+        if entry.run not in waiting:
+            ready.append(entry)
+        waiting.add(entry.run)
+    return ready
+
+
+@contextlib.contextmanager
+def campaign_lock(queue: Path) -> Iterator[None]:
+    """Hold the queue's lock file while the campaign runs; ExperimentError if another campaign holds it."""
+    path = queue.with_name(f".{queue.name}.lock")
+    with path.open("a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ExperimentError(
+                f"another campaign is running on {queue} (it holds {path}); one campaign process at a time"
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        yield
+
+
+def _child(entry: CampaignEntry, queue: Path, core: int | None, deadline: float | None) -> subprocess.Popen:
+    """Start `entry` in a child process (pinned to `core`, unless None), logging to its run folder."""
+    command = [sys.executable, "-m", "sb3_huri.experiments", "campaign", "--queue", str(queue)]
+    command += ["--entry", entry.name]
+    if deadline is not None:
+        command += ["--max-wall-minutes", f"{max(deadline - time.time(), 0.0) / 60:.2f}"]
+    entry.run.mkdir(parents=True, exist_ok=True)
+    log = (entry.run / LOG_FILE).open("a")
+    log.write(f"\n== {time.strftime('%Y-%m-%d %H:%M:%S')} campaign entry {entry.name}, core {core}\n")
+    log.flush()
+    pin = None if core is None else (lambda: os.sched_setaffinity(0, {core}))
+    child = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, preexec_fn=pin)
+    log.close()
+    return child
+
+
+def run_campaign(
+    queue: Path, slots: int | None = None, max_wall_s: float | None = None, echo=print
+) -> list[CampaignEntry]:
+    """Train the queue's entries, `slots` at once (default: one per core), until every entry is done, the
+    wall time is reached or a stop signal comes; returns the entries still unfinished."""
+    cores = sorted(os.sched_getaffinity(0))
+    slots = slots or len(cores)
+    deadline = None if max_wall_s is None else time.time() + max_wall_s
+    running: dict[int, tuple[CampaignEntry, subprocess.Popen]] = {}  # by core slot
+    failed: set[str] = set()
+    stopping = False
+
+    def stop(*_: object) -> None:
+        nonlocal stopping
+        stopping = True
+        for _, child in running.values():
+            child.send_signal(signal.SIGTERM)
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        with campaign_lock(queue):
+            while True:
+                entries = load_queue(queue)
+                out_of_time = deadline is not None and time.time() >= deadline
+                if not stopping and not out_of_time:
+                    busy = {entry.run for entry, _ in running.values()}
+                    free = [slot for slot in range(slots) if slot not in running]
+                    for slot, entry in zip(free, runnable(entries, busy, failed), strict=False):
+                        core = cores[slot % len(cores)] if slots > 1 else None
+                        running[slot] = (entry, _child(entry, queue, core, deadline))
+                        echo(f"{time.strftime('%H:%M:%S')} started {entry.name} on slot {slot}")
+                if not running:
+                    break
+                time.sleep(5)
+                for slot, (entry, child) in list(running.items()):
+                    if child.poll() is None:
+                        continue
+                    del running[slot]
+                    echo(
+                        f"{time.strftime('%H:%M:%S')} {entry.name}: exit {child.returncode}, {entry.state()}"
+                    )
+                    unfinished = entry.state() != "done" and (deadline is None or time.time() < deadline)
+                    if not stopping and (child.returncode != 0 or unfinished):
+                        failed.add(entry.name)  # not restarted by this campaign: see <run>/train.log
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return [entry for entry in load_queue(queue) if entry.state() != "done"]
+
+
+def status_table(queue: Path) -> str:
+    """Every entry's protocol, method, seed, steps against its target, training hours and state."""
+    import json
+
+    lines = [
+        f"{'entry':24} {'protocol':8} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6} state"
+    ]
+    for entry in load_queue(queue):
+        state_file = entry.run / "Zerith1-v0" / "state.json"
+        hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
+        lines.append(
+            f"{entry.name:24} {entry.protocol:8} {entry.method:14} {entry.seed:4} "
+            f"{entry.trained_steps():12,} {entry.steps:12,} {hours:6.2f} {entry.state()}"
+        )
+    return "\n".join(lines)

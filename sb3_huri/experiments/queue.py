@@ -1,0 +1,161 @@
+"""The training campaign's queue: the long runs, in priority order, and how far each has come.
+
+A queue file (``runs/campaign.yml``) lists entries; each trains one run folder (RL Zoo's layout, written by
+``sb3_huri.experiments.trainer``) up to a number of steps, then evaluates that checkpoint once under the
+paper's protocol (``sb3_huri.experiments.final_evaluation``). Paths in the file are relative to the file's
+own folder. The same run folder may appear in several entries (trained to 150M, later on to 285M)::
+
+    defaults:                  # optional; these are the defaults
+      robustness_every: 5000000  # a robustness row (Table 1 on 50 robots) every this many steps
+      robustness_episodes: 50
+      robustness_seed: 1000
+      eval_episodes: 100         # the final evaluation: robots per case, seeds eval_seed + i
+      eval_seed: 2000
+      episode_steps: 1000        # 20 s evaluation episodes
+    entries:
+      - name: robust-huri-s0     # unique
+        protocol: robust         # robust, paper (the paper's training ranges) or terrain
+        method: huri             # an RL Zoo algorithm name of sb3_huri.zoo.METHODS
+        seed: 0
+        run: huri/Zerith1-v0_6
+        conf: ../hyperparams/huri_robust.yml
+        steps: 156732992         # train until at least this many steps, then evaluate
+
+An entry is *done* when its run has trained that far and an evaluation written for the entry exists in
+``<run>/evaluations/``. Nothing else is stored: the run folders are the campaign's state.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sb3_huri.experiments.layout import ExperimentError
+
+ENV_ID = "Zerith1-v0"
+PROTOCOLS = ("robust", "paper", "terrain")
+"""The training protocols: the project's (train at the test magnitudes), the paper's (train at its Table-5
+ranges, test out of distribution) and the paper's terrain training (its appendix A.7)."""
+EVALUATIONS = "evaluations"
+
+
+@dataclass(frozen=True)
+class QueueDefaults:
+    """Evaluation settings shared by every entry of a queue."""
+
+    robustness_every: int = 5_000_000
+    robustness_episodes: int = 50
+    robustness_seed: int = 1000
+    eval_episodes: int = 100
+    eval_seed: int = 2000
+    episode_steps: int = 1000
+    """Control steps of an evaluation episode (20 s, as the paper's tests), robustness rows included."""
+
+
+@dataclass(frozen=True)
+class CampaignEntry:
+    """One entry of the queue: train `run` with `method`, `seed` and the preset `conf` to `steps`."""
+
+    name: str
+    protocol: str
+    method: str
+    seed: int
+    run: Path
+    conf: Path
+    steps: int
+    defaults: QueueDefaults = field(default_factory=QueueDefaults)
+
+    def trained_steps(self) -> int:
+        """Steps the run folder's newest checkpoint holds (0 for a run not started)."""
+        path = self.run / ENV_ID / "state.json"
+        return int(json.loads(path.read_text())["timesteps"]) if path.is_file() else 0
+
+    def evaluation(self) -> Path | None:
+        """The entry's final evaluation file, if it was written."""
+        for path in sorted((self.run / EVALUATIONS).glob("*.json")):
+            if json.loads(path.read_text()).get("entry") == self.name:
+                return path
+        return None
+
+    def state(self) -> str:
+        """``done``, ``evaluate`` (trained, not yet evaluated), ``train`` (more steps to go) or ``new``."""
+        steps = self.trained_steps()
+        if steps < self.steps:
+            return "train" if steps else "new"
+        return "done" if self.evaluation() is not None else "evaluate"
+
+
+_REQUIRED = ("name", "protocol", "method", "seed", "run", "conf", "steps")
+
+
+def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Path) -> CampaignEntry:
+    from sb3_huri.zoo import METHODS
+
+    if not isinstance(raw, dict):
+        raise ExperimentError(f"{where}: entry {index} is not a mapping of {', '.join(_REQUIRED)}")
+    missing = [key for key in _REQUIRED if key not in raw]
+    unknown = sorted(set(raw) - set(_REQUIRED))
+    if missing or unknown:
+        raise ExperimentError(
+            f"{where}: entry {index} ({raw.get('name', '?')}): "
+            + "; ".join(
+                part
+                for part in (
+                    f"missing {', '.join(missing)}" if missing else "",
+                    f"unknown {', '.join(unknown)}" if unknown else "",
+                )
+                if part
+            )
+            + f" (an entry has {', '.join(_REQUIRED)})"
+        )
+    if raw["protocol"] not in PROTOCOLS:
+        raise ExperimentError(
+            f"{where}: entry {raw['name']}: protocol {raw['protocol']!r} is not one of {', '.join(PROTOCOLS)}"
+        )
+    if raw["method"] not in METHODS:
+        raise ExperimentError(
+            f"{where}: entry {raw['name']}: unknown method {raw['method']!r}; methods: {', '.join(METHODS)}"
+        )
+    try:
+        seed, steps = int(raw["seed"]), int(float(raw["steps"]))
+    except (TypeError, ValueError) as error:
+        raise ExperimentError(
+            f"{where}: entry {raw['name']}: seed and steps must be numbers ({error})"
+        ) from None
+    if steps < 1:
+        raise ExperimentError(f"{where}: entry {raw['name']}: steps must be positive, got {steps}")
+    conf = (base / raw["conf"]).resolve()
+    if not conf.is_file():
+        raise ExperimentError(f"{where}: entry {raw['name']}: preset file {conf} not found")
+    return CampaignEntry(
+        str(raw["name"]), raw["protocol"], raw["method"], seed, (base / raw["run"]).resolve(), conf, steps,
+        defaults,
+    )  # fmt: skip
+
+
+def load_queue(path: str | Path) -> list[CampaignEntry]:
+    """The entries of the queue file at `path`, in order; ExperimentError saying what is wrong otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise ExperimentError(f"queue file {path} not found")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as error:
+        raise ExperimentError(f"{path} is not valid YAML: {error}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("entries"), list):
+        raise ExperimentError(f"{path}: a queue file is a mapping with a list under `entries:`")
+    known = {f.name for f in fields(QueueDefaults)}
+    raw_defaults = data.get("defaults") or {}
+    if not isinstance(raw_defaults, dict) or set(raw_defaults) - known:
+        raise ExperimentError(f"{path}: `defaults:` takes {', '.join(sorted(known))}")
+    defaults = QueueDefaults(**{key: int(float(value)) for key, value in raw_defaults.items()})
+    entries = [_entry(raw, i, path.parent, defaults, path) for i, raw in enumerate(data["entries"])]
+    names = [entry.name for entry in entries]
+    duplicated = sorted({name for name in names if names.count(name) > 1})
+    if duplicated:
+        raise ExperimentError(f"{path}: entry names must be unique; repeated: {', '.join(duplicated)}")
+    return entries

@@ -1,0 +1,173 @@
+"""The training campaign: its queue file, the order entries start in, robustness rows while training, and
+the whole queue trained by `python -m sb3_huri.experiments campaign` (sb3_huri.experiments.campaign)."""
+
+from __future__ import annotations
+
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from huri_helpers import ROOT, state_dicts_equal, tiny_robust_preset
+
+from sb3_huri import HuRiPPO
+from sb3_huri.experiments.campaign import campaign_lock, runnable, status_table
+from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.queue import load_queue
+from sb3_huri.experiments.robustness import CASES, read_rows
+from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
+from sb3_huri.zoo import read_preset
+from sb3_huri.zoo.checkpoints import RunState
+
+
+def _queue(folder: Path, entries: list[dict], **defaults) -> Path:
+    path = folder / "campaign.yml"
+    path.write_text(yaml.safe_dump({"defaults": defaults, "entries": entries}))
+    return path
+
+
+def _entry(name: str, run: str, steps: int, method: str = "huri", seed: int = 0) -> dict:
+    return dict(name=name, protocol="robust", method=method, seed=seed, run=run, conf="tiny.yml", steps=steps)
+
+
+def test_the_projects_queue_is_valid_and_names_its_entries_once():
+    entries = load_queue(ROOT / "runs" / "campaign.yml")
+    assert len({e.name for e in entries}) == len(entries) >= 6
+    assert (
+        entries[0].name == "robust-huri-s0-pair" and entries[0].run == ROOT / "runs" / "huri" / "Zerith1-v0_6"
+    )
+    assert {e.protocol for e in entries} >= {"robust", "paper"}
+    assert all(e.conf.is_file() for e in entries)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"protocol": "lab"}, "protocol 'lab' is not one of robust, paper, terrain"),
+        ({"method": "sac"}, "unknown method 'sac'"),
+        ({"conf": "missing.yml"}, "missing.yml not found"),
+        ({"steps": "many"}, "seed and steps must be numbers"),
+        ({"budget": 3}, "unknown budget"),
+    ],
+)
+def test_a_bad_queue_entry_is_a_clear_error(tmp_path, change, message):
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [{**_entry("a", "a/Zerith1-v0_1", 64), **change}])
+    with pytest.raises(ExperimentError, match=message):
+        load_queue(queue)
+
+
+def test_a_queue_with_a_repeated_name_or_no_entries_is_refused(tmp_path):
+    tiny_robust_preset(tmp_path)
+    with pytest.raises(ExperimentError, match="repeated: a"):
+        load_queue(_queue(tmp_path, [_entry("a", "x", 64), _entry("a", "y", 64)]))
+    (tmp_path / "empty.yml").write_text("defaults: {}\n")
+    with pytest.raises(ExperimentError, match="a list under `entries:`"):
+        load_queue(tmp_path / "empty.yml")
+
+
+def _fake_state(run: Path, steps: int) -> None:
+    (run / "Zerith1-v0").mkdir(parents=True)
+    (run / "Zerith1-v0" / "state.json").write_text(f'{{"timesteps": {steps}, "wall_s": 0, "sessions": []}}')
+
+
+def test_entries_start_in_queue_order_one_per_run_folder_and_never_before_an_earlier_one_of_it(tmp_path):
+    tiny_robust_preset(tmp_path)
+    queue = _queue(
+        tmp_path,
+        [
+            _entry("a-first", "a", 100),
+            _entry("b", "b", 100),
+            _entry("a-later", "a", 200),
+            _entry("c", "c", 100),
+            _entry("d-done", "d", 100),
+        ],
+    )
+    _fake_state(tmp_path / "d", 100)
+    (tmp_path / "d" / "evaluations").mkdir()
+    (tmp_path / "d" / "evaluations" / "100.json").write_text('{"entry": "d-done"}')
+    entries = load_queue(queue)
+    assert [e.state() for e in entries] == ["new", "new", "new", "new", "done"]
+    names = [e.name for e in runnable(entries, busy=set(), failed=set())]
+    assert names == ["a-first", "b", "c"]  # a-later waits for a-first, whatever the free slots
+    assert [e.name for e in runnable(entries, busy={tmp_path / "b"}, failed=set())] == ["a-first", "c"]
+    assert [e.name for e in runnable(entries, busy=set(), failed={"a-first"})] == ["b", "c"]
+    assert "d-done" in status_table(queue) and "done" in status_table(queue).splitlines()[-1]
+
+
+def test_one_campaign_at_a_time(tmp_path):
+    queue = tmp_path / "campaign.yml"
+    queue.write_text("entries: []\n")
+    with (
+        campaign_lock(queue),
+        pytest.raises(ExperimentError, match="another campaign is running"),
+        campaign_lock(queue),
+    ):
+        pass
+
+
+def test_training_passes_its_marks_with_a_kept_checkpoint_and_a_robustness_row_each(tmp_path):
+    """Rows come from the policy at the mark's checkpoint; their evaluation time is not training time."""
+    preset = read_preset("Zerith1-v0", tiny_robust_preset(tmp_path))
+    run = tmp_path / "run"
+    schedule = RobustnessSchedule(every=128, episodes=2, seed=1000, episode_steps=20)
+    options = TrainingOptions(checkpoint_freq=10_000, robustness=schedule, workers=0, verbose=0)
+    assert train_run(RunRequest(run, preset, "huri", 0, until=256), options) == 256
+    rows = read_rows(run)
+    assert list(rows) == [128, 256]
+    assert all(0.0 <= float(rows[128][case]) <= 1.0 for case in CASES)
+    assert rows[256]["episodes"] == "2" and float(rows[256]["wall_s"]) <= RunState.read(run).wall_s
+    kept = sorted(p.name for p in (run / "checkpoints").iterdir())
+    assert kept == [f"rl_model_{s}_steps.zip" for s in (128, 256)] + [
+        f"rl_model_vecnormalize_{s}_steps.pkl" for s in (128, 256)
+    ]
+    # Evaluating between rollouts changes nothing the training learns: the same run without rows.
+    plain = TrainingOptions(checkpoint_freq=10_000, workers=0, verbose=0)
+    assert train_run(RunRequest(tmp_path / "plain", preset, "huri", 0, until=256), plain) == 256
+    state_dicts_equal(
+        HuRiPPO.load(run / "Zerith1-v0.zip").policy.state_dict(),
+        HuRiPPO.load(tmp_path / "plain" / "Zerith1-v0.zip").policy.state_dict(),
+    )
+    with pytest.raises(ValueError, match="a run of huri, not huri-baseline"):
+        train_run(RunRequest(run, preset, "huri-baseline", 0, until=320), options)
+
+
+def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_path):
+    """The real command on a tiny queue: both entries trained side by side to their steps, with their
+    robustness rows and final evaluations; run again, it has nothing left to do."""
+    tiny_robust_preset(tmp_path)
+    defaults = dict(robustness_every=128, robustness_episodes=2, eval_episodes=2, episode_steps=10)
+    queue = _queue(
+        tmp_path,
+        [
+            _entry("huri-s0", "huri/Zerith1-v0_1", 128),
+            _entry("ppo-s0", "ppo/Zerith1-v0_1", 128, "huri-baseline"),
+        ],
+        **defaults,
+    )
+    command = [
+        sys.executable,
+        "-m",
+        "sb3_huri.experiments",
+        "campaign",
+        "--queue",
+        str(queue),
+        "--slots",
+        "2",
+    ]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, env=os.environ.copy())
+    logs = "".join(p.read_text() for p in tmp_path.glob("*/Zerith1-v0_1/train.log"))
+    assert result.returncode == 0, result.stdout + result.stderr + logs[-3000:]
+    assert "every entry is done" in result.stdout
+    for run in (tmp_path / "huri" / "Zerith1-v0_1", tmp_path / "ppo" / "Zerith1-v0_1"):
+        assert RunState.read(run).timesteps == 128
+        assert list(read_rows(run)) == [128]
+        assert len(list((run / "evaluations").glob("128.json"))) == 1
+        with (run / "curve.csv").open() as file:
+            assert [int(r["timesteps"]) for r in csv.DictReader(file)] == [64, 128]
+    assert [e.state() for e in load_queue(queue)] == ["done", "done"]
+    again = subprocess.run(command, capture_output=True, text=True, timeout=120, env=os.environ.copy())
+    assert again.returncode == 0 and "started" not in again.stdout

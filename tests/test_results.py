@@ -1,0 +1,333 @@
+"""The campaign's final evaluation (``final_evaluation``) and its results page (``results``).
+
+The page is built from a synthetic queue and synthetic run folders, and its numbers are checked against
+computations made here independently (scipy's Wilson interval and t quantiles, counts of robots); the
+evaluation runs on a real, untrained model with two robots and three-step episodes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+import yaml
+from scipy import stats
+
+from sb3_huri.experiments import final_evaluation
+from sb3_huri.experiments.evaluation import (
+    PLANE_CASE,
+    RISK_CASES,
+    TABLE1_SCENARIOS,
+    RiskTrace,
+    paired_difference_interval,
+    write_trace,
+)
+from sb3_huri.experiments.final_evaluation import (
+    EVALUATION_CASES,
+    evaluate_entry,
+    find_checkpoint,
+    trace_path,
+)
+from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.queue import CampaignEntry, QueueDefaults, load_queue
+from sb3_huri.experiments.results import write_results
+from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
+
+ENV = "Zerith1-v0"
+ROBOTS = 40
+ROLLOUT = 32  # n_envs * n_steps of the synthetic runs' config.yml
+CASES = (*TABLE1_SCENARIOS, "side-impact", "load", "friction", "load-friction", *RISK_CASES)
+
+
+def _run(folder: Path, steps: int, wall_s: float, hardware: str) -> None:
+    """A run folder as the trainer leaves it: state, preset, learning and robustness curves."""
+    (folder / ENV).mkdir(parents=True)
+    session = {"started": "2026-01-01 00:00:00", "from_timesteps": 0, "to_timesteps": steps}
+    state = {"timesteps": steps, "wall_s": wall_s, "sessions": [{**session, "hardware": hardware}]}
+    (folder / ENV / "state.json").write_text(json.dumps(state))
+    (folder / ENV / "config.yml").write_text(yaml.safe_dump({"n_envs": 4, "n_steps": 8}))
+    for step in range(0, steps + 1, ROLLOUT):
+        scale = min(step / 500, 1.0)
+        row = {"timesteps": step, "wall_s": step / 10, "ep_return": 50 + step / 20, "scale": scale}
+        append_row(folder, {**dict.fromkeys(CURVE_COLUMNS, math.nan), **row})
+    rows = ["timesteps,table1_mean,episodes"] + [f"{s},{s / 2000:.3f},10" for s in (0, 500, 1000)]
+    (folder / "robustness.csv").write_text("\n".join(rows) + "\n")
+
+
+def _evaluation(
+    folder: Path, name: str, method: str, seed: int, steps: int, rng: np.random.Generator
+) -> dict:
+    """An evaluation file of random per-robot outcomes; returns the outcomes written, by case."""
+    survive_rate = 0.8 if method == "huri" else 0.6
+    outcomes = {case: rng.random(ROBOTS) < survive_rate for case in CASES}
+    cases = {
+        case: {
+            "survive": float(alive.mean()),
+            "survived": alive.astype(int).tolist(),
+            "fall_step": [None if a else 10 for a in alive],
+            "lin_err": 0.2 + 0.01 * seed,
+            "yaw_err": 0.3,
+            "iqr": {"uneven": 0.9, "sudden-centroid": 0.5, PLANE_CASE: 0.2}.get(case, math.nan),
+            "beta": 0.1,
+        }
+        for case, alive in outcomes.items()
+    }
+    data = {
+        "entry": name, "protocol": "robust", "method": method, "seed": seed, "steps": steps,
+        "wall_s": steps / 10, "hardware": ["test machine"], "eval_s": 1.0, "model": f"{ENV}.zip",
+        "settings": {"episodes": ROBOTS, "seed": 2000, "episode_steps": 1000}, "cases": cases,
+    }  # fmt: skip
+    (folder / "evaluations").mkdir(exist_ok=True)
+    (folder / "evaluations" / f"{steps}.json").write_text(json.dumps(data))
+    return outcomes
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, dict]]:
+    """A queue of five entries: HuRi seeds 0 and 1 and PPO seed 0 evaluated (HuRi and PPO seed 0 one
+    rollout apart at most), PPO seed 0 on to a later target (training) and HuRi seed 2 (new)."""
+    root = tmp_path_factory.mktemp("campaign")
+    (root / "preset.yml").write_text("Zerith1-v0: {}\n")
+    rng = np.random.default_rng(7)
+    _run(root / "huri" / f"{ENV}_1", 1010, 3600.0, "machine A")
+    _run(root / "huri" / f"{ENV}_2", 1000, 7200.0, "machine B")
+    _run(root / "huri-baseline" / f"{ENV}_1", 1000, 1800.0, "machine A")
+    outcomes = {
+        "huri-s0": _evaluation(root / "huri" / f"{ENV}_1", "huri-s0", "huri", 0, 1010, rng),
+        "huri-s1": _evaluation(root / "huri" / f"{ENV}_2", "huri-s1", "huri", 1, 1000, rng),
+        "ppo-s0": _evaluation(root / "huri-baseline" / f"{ENV}_1", "ppo-s0", "huri-baseline", 0, 1000, rng),
+    }
+    trace = RiskTrace(np.linspace(0, 1, 5), np.linspace(0.2, 0.4, 5), np.zeros((5, 8)), np.zeros(5), 0.5, 0.3)
+    for case in RISK_CASES:
+        write_trace(trace_path(root / "huri" / f"{ENV}_1", 1010, case), trace)
+    entries = [
+        ("huri-s0", "huri", 0, "huri/Zerith1-v0_1", 1000),
+        ("huri-s1", "huri", 1, "huri/Zerith1-v0_2", 1000),
+        ("ppo-s0", "huri-baseline", 0, "huri-baseline/Zerith1-v0_1", 1000),
+        ("ppo-s0-long", "huri-baseline", 0, "huri-baseline/Zerith1-v0_1", 5000),
+        ("huri-s2", "huri", 2, "huri/Zerith1-v0_3", 1000),
+    ]
+    keys = ("name", "method", "seed", "run", "steps")
+    queue = {
+        "entries": [
+            {**dict(zip(keys, e, strict=True)), "protocol": "robust", "conf": "preset.yml"} for e in entries
+        ]
+    }
+    (root / "campaign.yml").write_text(yaml.safe_dump(queue))
+    write_results(root / "campaign.yml", root / "docs" / "results.md")
+    return root, outcomes
+
+
+def _page(root: Path) -> str:
+    return (root / "docs" / "results.md").read_text()
+
+
+def _row(page: str, first_cell: str, after: str = "") -> list[str]:
+    """The cells of the first table row (after the text ``after``) whose first cell is ``first_cell``."""
+    for line in page[page.index(after) :].splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if line.startswith("|") and cells[0] == first_cell:
+            return cells
+    raise AssertionError(f"no row {first_cell!r} after {after!r}")
+
+
+def test_status_table_gives_each_entry_its_state_steps_and_hardware(campaign) -> None:
+    root, _ = campaign
+    page = _page(root)
+    header = _row(page, "entry", "## 1.")
+    state = header.index("state")
+    assert _row(page, "huri-s0", "## 1.")[state] == "done (evaluated at 1,010)"
+    assert _row(page, "ppo-s0", "## 1.")[state] == "done (evaluated at 1,000)"
+    assert _row(page, "ppo-s0-long", "## 1.")[state] == "train"
+    assert _row(page, "huri-s2", "## 1.")[state] == "new"
+    huri = _row(page, "huri-s0", "## 1.")
+    assert huri[header.index("steps / target")] == "1,010 / 1,000"
+    assert huri[header.index("training h")] == f"{1010 / 10 / 3600:.2f}"  # wall time at the evaluated step
+    assert huri[header.index("hardware")] == "test machine"
+    assert "Still training: ppo-s0-long." in page
+
+
+def test_survival_cells_are_wilson_intervals(campaign) -> None:
+    root, outcomes = campaign
+    page = _page(root)
+    header = _row(page, "agent", "## 2.")
+    for case in (*TABLE1_SCENARIOS, "side-impact"):
+        alive = outcomes["huri-s0"][case]
+        low, high = stats.binomtest(int(alive.sum()), alive.size).proportion_ci(method="wilson")
+        expected = f"{alive.mean():.2f} [{low:.2f}, {high:.2f}]"
+        assert _row(page, "huri-s0", "## 2.")[header.index(case)] == expected
+
+
+def test_table1_mean_and_its_mean_over_seeds_use_students_t(campaign) -> None:
+    root, outcomes = campaign
+    page = _page(root)
+    header = _row(page, "agent", "## 2.")
+    column = header.index("Table-1 mean")
+    per_robot = np.mean([outcomes["huri-s0"][case] for case in TABLE1_SCENARIOS], axis=0)
+    half = stats.t.ppf(0.975, ROBOTS - 1) * per_robot.std(ddof=1) / math.sqrt(ROBOTS)
+    mean = per_robot.mean()
+    assert _row(page, "huri-s0", "## 2.")[column] == f"{mean:.3f} [{mean - half:.3f}, {mean + half:.3f}]"
+    seeds = [np.mean([outcomes[n][c].mean() for c in TABLE1_SCENARIOS]) for n in ("huri-s0", "huri-s1")]
+    half = stats.t.ppf(0.975, 1) * np.std(seeds, ddof=1) / math.sqrt(2)
+    assert _row(page, "**mean over seeds 0, 1**", "## 2.")[column] == f"{np.mean(seeds):.3f} ± {half:.3f} (2)"
+    assert "Baseline (PPO), robust protocol: one seed (0): an anecdote, no interval over seeds yet." in page
+
+
+def test_paired_differences_are_huri_minus_ppo_on_the_same_robots(campaign) -> None:
+    root, outcomes = campaign
+    page = _page(root)
+    after = "**huri-s0 @ 0.0M minus ppo-s0 @ 0.0M**"
+    assert after in page  # 1,010 and 1,000 steps: within one rollout (32), so paired
+    assert "huri-s1 @ 0.0M minus ppo-s0" not in page  # another seed: not paired
+    huri, ppo = outcomes["huri-s0"], outcomes["ppo-s0"]
+    for case in (*TABLE1_SCENARIOS, "side-impact"):
+        cells = _row(page, case, after)
+        difference, low, high = paired_difference_interval(huri[case], ppo[case])
+        assert difference == pytest.approx(huri[case].mean() - ppo[case].mean())
+        assert cells[3] == f"{difference:+.3f} [{low:+.3f}, {high:+.3f}]"
+        assert cells[4:6] == [str(np.sum(huri[case] & ~ppo[case])), str(np.sum(~huri[case] & ppo[case]))]
+        includes_zero = low <= 0 <= high
+        assert ("no difference measured" in cells[6]) == includes_zero
+    differences = np.mean([huri[c].astype(float) - ppo[c] for c in TABLE1_SCENARIOS], axis=0)
+    half = stats.t.ppf(0.975, ROBOTS - 1) * differences.std(ddof=1) / math.sqrt(ROBOTS)
+    mean = differences.mean()
+    cells = _row(page, "Table-1 mean (t over robots)", after)
+    assert cells[3] == f"{mean:+.3f} [{mean - half:+.3f}, {mean + half:+.3f}]"
+    assert f"Table-1 mean on the same robots: {cells[3]}" in page  # the finding at the top says it too
+
+
+def test_figures_are_drawn_small_and_linked(campaign) -> None:
+    root, _ = campaign
+    page = _page(root)
+    for name in ("robustness", "returns", "tracking", "risk"):
+        figure = root / "docs" / "results" / f"{name}.png"
+        assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert figure.stat().st_size < 200_000
+        assert f"![{name}](results/{name}.png)" in page
+    assert "reached full scale at 512 steps" in page  # the curriculum's scale, from curve.csv
+    assert _row(page, "huri-s0 @ 0.0M", "## 6.")[-1] == "holds (uneven > push > plane)"
+
+
+def test_a_figure_without_data_is_removed(tmp_path: Path) -> None:
+    (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
+    entry = {"name": "a", "protocol": "robust", "method": "huri", "seed": 0, "run": "r", "conf": "preset.yml"}
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": [{**entry, "steps": 10}]}))
+    stale = tmp_path / "docs" / "results" / "risk.png"
+    stale.parent.mkdir(parents=True)
+    stale.write_bytes(b"old")
+    page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
+    assert not stale.exists()
+    assert "No risk trace is written yet." in page
+    assert "No HuRi-PPO pair is evaluated yet" in page
+
+
+def _entry(run: Path, steps: int, **defaults: int) -> CampaignEntry:
+    conf = run.parent / "preset.yml"
+    conf.write_text("Zerith1-v0: {}\n")
+    return CampaignEntry("e", "robust", "huri", 0, run, conf, steps, QueueDefaults(**defaults))
+
+
+def test_find_checkpoint_takes_the_first_complete_model_at_or_after_the_target(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    (run / ENV).mkdir(parents=True)
+    (run / f"{ENV}.zip").write_bytes(b"newest")
+    (run / ENV / "vecnormalize.pkl").write_bytes(b"stats")
+    (run / ENV / "state.json").write_text(json.dumps({"timesteps": 5000}))
+    kept = run / "checkpoints"
+    kept.mkdir()
+    for steps in (1000, 2000, 3000):
+        (kept / f"rl_model_{steps}_steps.zip").write_bytes(b"model")
+    for steps in (1000, 3000):  # 2000's normalizer is missing: a checkpoint cut by a kill
+        (kept / f"rl_model_vecnormalize_{steps}_steps.pkl").write_bytes(b"stats")
+    assert find_checkpoint(_entry(run, 1000)) == (
+        1000,
+        kept / "rl_model_1000_steps.zip",
+        kept / "rl_model_vecnormalize_1000_steps.pkl",
+    )
+    assert find_checkpoint(_entry(run, 1500))[0] == 3000
+    assert find_checkpoint(_entry(run, 4000)) == (5000, run / f"{ENV}.zip", run / ENV / "vecnormalize.pkl")
+    with pytest.raises(ExperimentError, match=r"no saved model at or after 6,000 steps.*1,000, 3,000, 5,000"):
+        find_checkpoint(_entry(run, 6000))
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run folder holding an untrained HuRi model (no normalizer) at 16 steps."""
+    import zerith_gym
+    from sb3_huri import HuRiPPO
+
+    run = tmp_path_factory.mktemp("tiny") / "run"
+    (run / ENV).mkdir(parents=True)
+    env = zerith_gym.make_vec_env(2, workers=0)
+    model = HuRiPPO(
+        "MultiInputPolicy", env, n_steps=8, n_quantiles=8, policy_kwargs={"net_arch": [8]}, seed=3
+    )
+    model.save(run / f"{ENV}.zip")
+    env.close()
+    session = {"from_timesteps": 0, "to_timesteps": 16, "hardware": "test machine", "started": "-"}
+    (run / ENV / "state.json").write_text(json.dumps({"timesteps": 16, "wall_s": 2.0, "sessions": [session]}))
+    append_row(run, {**dict.fromkeys(CURVE_COLUMNS, math.nan), "timesteps": 16, "wall_s": 2.0})
+    return run
+
+
+def test_evaluate_entry_writes_every_case_per_robot_and_keeps_the_random_states(tiny_run: Path) -> None:
+    entry = _entry(tiny_run, 16, eval_episodes=2, eval_seed=5)
+    random.seed(1), np.random.seed(1), th.manual_seed(1)  # noqa: NPY002
+    path = evaluate_entry(entry, workers=0, episode_steps=3)
+    draws = (random.random(), np.random.random(), th.rand(1).item())  # noqa: NPY002
+    random.seed(1), np.random.seed(1), th.manual_seed(1)  # noqa: NPY002
+    assert draws == (random.random(), np.random.random(), th.rand(1).item())  # noqa: NPY002
+    data = json.loads(path.read_text())
+    assert path == tiny_run / "evaluations" / "16.json" and entry.evaluation() == path
+    assert (data["entry"], data["steps"], data["wall_s"]) == ("e", 16, 2.0)
+    assert data["hardware"] == ["test machine"]
+    assert data["settings"] == {"episodes": 2, "seed": 5, "episode_steps": 3}
+    assert set(data["cases"]) == set(EVALUATION_CASES)
+    for metrics in data["cases"].values():
+        assert len(metrics["survived"]) == len(metrics["fall_step"]) == 2 and "domain" not in metrics
+        assert metrics["survive"] == np.mean(metrics["survived"])
+    for case in RISK_CASES:
+        with np.load(trace_path(tiny_run, 16, case)) as trace:
+            assert trace["beta"].shape == (3,)
+    assert evaluate_entry(entry) == path  # done already: nothing is run again
+    other = CampaignEntry("f", "robust", "huri", 0, tiny_run, entry.conf, 10, entry.defaults)
+    with pytest.raises(ExperimentError, match="already evaluated for entry e"):
+        evaluate_entry(other)
+    path.unlink()
+
+
+class Killed(Exception):
+    """The evaluation stopped in the middle of a case."""
+
+
+def test_an_interrupted_evaluation_continues_with_the_next_case(tiny_run: Path, monkeypatch) -> None:
+    entry = _entry(tiny_run, 16, eval_episodes=2, eval_seed=5)
+    real, calls, kill_at = final_evaluation.evaluate, [], [3]
+
+    def evaluate(*args, **kwargs):
+        calls.append(args[2])
+        if len(calls) in kill_at:
+            raise Killed
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(final_evaluation, "evaluate", evaluate)
+    with pytest.raises(Killed):
+        evaluate_entry(entry, workers=0, episode_steps=3)
+    partial = tiny_run / "evaluations" / "16.json.partial"
+    assert len(json.loads(partial.read_text())["cases"]) == 2
+    assert entry.evaluation() is None and entry.state() == "evaluate"  # a partial file is not a result
+    calls.clear(), kill_at.clear()
+    path = evaluate_entry(entry, workers=0, episode_steps=3)
+    assert len(calls) == len(EVALUATION_CASES) - 2 and not partial.exists()
+    assert set(json.loads(path.read_text())["cases"]) == set(EVALUATION_CASES)
+    path.unlink()
+
+
+def test_the_campaign_queue_loads_with_the_synthetic_presets(campaign) -> None:
+    root, _ = campaign
+    assert [e.state() for e in load_queue(root / "campaign.yml")] == ["done", "done", "done", "train", "new"]
