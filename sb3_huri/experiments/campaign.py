@@ -168,18 +168,34 @@ def run_campaign(
     return [entry for entry in load_queue(queue) if entry.state() != "done"]
 
 
+def recent_rate(run: Path, rows: int = 200) -> float | None:
+    """The run's training speed over its last `rows` rollouts (env steps per second of training time, from
+    ``curve.csv``), or None before it has two rows."""
+    from sb3_huri.zoo.curve import read_curve
+
+    curve = read_curve(run)[-rows:]
+    if len(curve) < 2 or curve[-1]["wall_s"] <= curve[0]["wall_s"]:
+        return None
+    return (curve[-1]["timesteps"] - curve[0]["timesteps"]) / (curve[-1]["wall_s"] - curve[0]["wall_s"])
+
+
 def status_table(queue: Path) -> str:
-    """Every entry's protocol, method, seed, steps against its target, training hours and state."""
+    """Every entry's protocol, method, seed, steps against its target, training hours, recent speed, the
+    training hours left at that speed, and state."""
     import json
 
-    lines = [
-        f"{'entry':24} {'protocol':8} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6} state"
-    ]
+    header = f"{'entry':24} {'protocol':8} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
+    lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     for entry in load_queue(queue):
         state_file = entry.run / "Zerith1-v0" / "state.json"
         hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
+        steps, state = entry.trained_steps(), entry.state()
+        rate = recent_rate(entry.run) if state == "train" else None
+        speed = (
+            f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
+        )
         lines.append(
             f"{entry.name:24} {entry.protocol:8} {entry.method:14} {entry.seed:4} "
-            f"{entry.trained_steps():12,} {entry.steps:12,} {hours:6.2f} {entry.state()}"
+            f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
         )
     return "\n".join(lines)

@@ -220,6 +220,10 @@ class RunCheckpoint(CurveWriter):
         self.run, self.preset, self.run_args = Path(run), preset, run_args
         self.every_steps, self.max_wall_s = every_steps, max_wall_s
         self.keep_every, self.robustness = keep_every, robustness
+        if robustness is not None:  # imported now: a module changed on disk later must not mix in mid-run
+            from sb3_huri.experiments import robustness as robustness_rows
+
+            self._rows = robustness_rows
         self.env_id = env_id
         self.state = RunState.read(self.run, env_id)
         self.saved_steps = self.state.timesteps
@@ -292,18 +296,16 @@ class RunCheckpoint(CurveWriter):
 
     def add_robustness_row(self) -> None:
         """Evaluate the model as it is now (the newest checkpoint) into the run's ``robustness.csv``."""
-        from sb3_huri.experiments.robustness import add_row, robustness_row
-
         began = time.time()
         schedule = self.robustness
-        metrics = robustness_row(
+        metrics = self._rows.robustness_row(
             self.model,
             self.model.get_vec_normalize_env(),
             schedule.episodes,
             schedule.seed,
             episode_steps=schedule.episode_steps,
         )
-        row = add_row(self.run, self.saved_steps, metrics, schedule.episodes)
+        row = self._rows.add_row(self.run, self.saved_steps, metrics, schedule.episodes)
         self._paused_s += time.time() - began
         if self.verbose:
             print(f"robustness at {self.saved_steps} steps: Table-1 mean {row['table1_mean']}", flush=True)
