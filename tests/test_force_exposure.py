@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from huri_helpers import load_script
 
 import zerith_gym
 from sb3_huri.experiments.evaluation import HoldStance
-from tests.test_trained_agents import load_script
 from zerith_gym.disturbances import TARGET_INDEX
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario

@@ -7,9 +7,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from huri_helpers import load_script
 
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
-from tests.test_trained_agents import load_script
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS
 

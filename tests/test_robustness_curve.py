@@ -8,10 +8,10 @@ import sys
 
 import numpy as np
 import pytest
+from huri_helpers import load_script
 
 from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
 from sb3_huri.zoo.curve import append_row
-from tests.test_trained_agents import load_script
 
 CASE_VALUE = 0.5
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from huri_helpers import load_script
 
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
-from tests.test_trained_agents import load_script
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
 
 

@@ -3,7 +3,6 @@ claim (gait measures)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
@@ -13,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from huri_helpers import load_script
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
@@ -23,16 +23,6 @@ ENV_ID = "Zerith1-v0"
 AGENTS = {"huri": "huri", "ppo": "baseline"}
 """Shipped RL Zoo algorithm folder -> the HuRiPPO variant it must hold (the baseline is PPO exactly, so it
 is shipped where RL Zoo's own `ppo` looks for it)."""
-
-
-def load_script(relative: str):
-    """Import a script of the repository (examples/, benchmarks/) as a module."""
-    path = REPO / relative
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up here
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.parametrize("algo", list(AGENTS))
