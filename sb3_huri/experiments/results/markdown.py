@@ -1,0 +1,50 @@
+"""Markdown pieces of the results page: step counts, links, figures, shares, differences."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+from sb3_huri.experiments.evaluation import (
+    wilson_interval,
+)
+
+
+def millions(steps: int) -> str:
+    """Steps in millions, as the page's labels write them."""
+    return f"{steps / 1e6:.1f}M"
+
+
+def link(path: Path, page: Path) -> str:
+    """``path`` relative to the page's folder (a link that works from the page)."""
+    return os.path.relpath(path, page.parent)
+
+
+def figure_lines(path: Path, page: Path, drawn: bool = True) -> list[str]:
+    """The page's lines showing a figure just drawn; a figure not drawn this time is deleted, so that no
+    figure outlives the data it was drawn from."""
+    if not drawn:
+        path.unlink(missing_ok=True)
+        return []
+    return [f"![{path.stem}]({link(path, page)})", ""]
+
+
+def share_cell(share: float, n: int) -> str:
+    """A survival share with its 95% Wilson interval."""
+    if n == 0 or not math.isfinite(share):
+        return "-"
+    low, high = wilson_interval(share, n)
+    return f"{share:.2f} [{low:.2f}, {high:.2f}]"
+
+
+def difference_cell(value: float, low: float, high: float) -> str:
+    """A difference with its 95% interval, signs shown."""
+    return f"{value:+.3f} [{low:+.3f}, {high:+.3f}]"
+
+
+def verdict(low: float, high: float, first: str, second: str) -> str:
+    """What a 95% interval of ``first - second`` says, in words."""
+    if low <= 0.0 <= high:
+        return "the interval includes 0: no difference measured"
+    return f"{first if low > 0 else second} survives more"
