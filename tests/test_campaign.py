@@ -137,17 +137,19 @@ def test_training_passes_its_marks_with_a_kept_checkpoint_and_a_robustness_row_e
 
 def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_path):
     """The real command on a tiny queue: both entries trained side by side to their steps, with their
-    robustness rows and final evaluations; run again, it has nothing left to do."""
+    robustness rows and final evaluations; an entry that fails is started once more, then left alone while
+    the others go on; run again, the command has nothing left to do but the failing entry."""
     tiny_robust_preset(tmp_path)
+    broken = yaml.safe_load((tmp_path / "tiny.yml").read_text())
+    broken["Zerith1-v0"]["n_epochs"] = 0  # refused by HuRiPPO when the entry starts
+    (tmp_path / "broken.yml").write_text(yaml.safe_dump(broken))
     defaults = dict(robustness_every=128, robustness_episodes=2, eval_episodes=2, episode_steps=10)
-    queue = _queue(
-        tmp_path,
-        [
-            _entry("huri-s0", "huri/Zerith1-v0_1", 128),
-            _entry("ppo-s0", "ppo/Zerith1-v0_1", 128, "huri-baseline"),
-        ],
-        **defaults,
-    )
+    entries = [
+        {**_entry("broken", "broken/Zerith1-v0_1", 128), "conf": "broken.yml"},
+        _entry("huri-s0", "huri/Zerith1-v0_1", 128),
+        _entry("ppo-s0", "ppo/Zerith1-v0_1", 128, "huri-baseline"),
+    ]
+    queue = _queue(tmp_path, entries, **defaults)
     command = [
         sys.executable,
         "-m",
@@ -160,14 +162,20 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
     ]
     result = subprocess.run(command, capture_output=True, text=True, timeout=600, env=os.environ.copy())
     logs = "".join(p.read_text() for p in tmp_path.glob("*/Zerith1-v0_1/train.log"))
-    assert result.returncode == 0, result.stdout + result.stderr + logs[-3000:]
-    assert "every entry is done" in result.stdout
+    assert result.returncode == 1, result.stdout + result.stderr + logs[-3000:]
+    assert "broken ended unfinished (1 of 2): started again" in result.stdout, result.stdout
+    assert "broken ended unfinished (2 of 2): left alone" in result.stdout
+    assert "1 entries unfinished" in result.stdout and "n_epochs" in logs
     for run in (tmp_path / "huri" / "Zerith1-v0_1", tmp_path / "ppo" / "Zerith1-v0_1"):
         assert RunState.read(run).timesteps == 128
         assert list(read_rows(run)) == [128]
         assert len(list((run / "evaluations").glob("128.json"))) == 1
         with (run / "curve.csv").open() as file:
             assert [int(r["timesteps"]) for r in csv.DictReader(file)] == [64, 128]
-    assert [e.state() for e in load_queue(queue)] == ["done", "done"]
+    assert [e.state() for e in load_queue(queue)] == ["new", "done", "done"]
     again = subprocess.run(command, capture_output=True, text=True, timeout=120, env=os.environ.copy())
-    assert again.returncode == 0 and "started" not in again.stdout
+    assert (
+        again.returncode == 1
+        and "started huri-s0" not in again.stdout
+        and "started ppo-s0" not in again.stdout
+    )

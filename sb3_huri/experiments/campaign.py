@@ -35,6 +35,10 @@ from sb3_huri.experiments.queue import CampaignEntry, load_queue
 DEFAULT_QUEUE = Path("runs") / "campaign.yml"
 CHECKPOINT_FREQ = 1_000_000
 LOG_FILE = "train.log"
+TRIES = 2
+"""Starts of an entry that ends unfinished (a crash, an error) before this campaign leaves it alone: a
+second start resumes it from its newest checkpoint, which gets past a one-off failure; a third is not
+made for one that fails every time."""
 
 
 def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: int | None = None) -> str:
@@ -127,7 +131,7 @@ def run_campaign(
     slots = slots or len(cores)
     deadline = None if max_wall_s is None else time.time() + max_wall_s
     running: dict[int, tuple[CampaignEntry, subprocess.Popen]] = {}  # by core slot
-    failed: set[str] = set()
+    failures: dict[str, int] = {}
     stopping = False
 
     def stop(*_: object) -> None:
@@ -145,7 +149,11 @@ def run_campaign(
                 if not stopping and not out_of_time:
                     busy = {entry.run for entry, _ in running.values()}
                     free = [slot for slot in range(slots) if slot not in running]
-                    for slot, entry in zip(free, runnable(entries, busy, failed), strict=False):
+                    for slot, entry in zip(
+                        free,
+                        runnable(entries, busy, {n for n, k in failures.items() if k >= TRIES}),
+                        strict=False,
+                    ):
                         core = cores[slot % len(cores)] if slots > 1 else None
                         running[slot] = (entry, _child(entry, queue, core, deadline))
                         echo(f"{time.strftime('%H:%M:%S')} started {entry.name} on slot {slot}")
@@ -160,8 +168,10 @@ def run_campaign(
                         f"{time.strftime('%H:%M:%S')} {entry.name}: exit {child.returncode}, {entry.state()}"
                     )
                     unfinished = entry.state() != "done" and (deadline is None or time.time() < deadline)
-                    if not stopping and (child.returncode != 0 or unfinished):
-                        failed.add(entry.name)  # not restarted by this campaign: see <run>/train.log
+                    if not stopping and (child.returncode != 0 or unfinished):  # see <run>/train.log
+                        failures[entry.name] = failures.get(entry.name, 0) + 1
+                        again = "started again" if failures[entry.name] < TRIES else "left alone"
+                        echo(f"{entry.name} ended unfinished ({failures[entry.name]} of {TRIES}): {again}")
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
