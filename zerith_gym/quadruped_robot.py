@@ -8,13 +8,12 @@ the time step and the `home` keyframe (checked by tests/test_quadruped_model.py)
 
 from __future__ import annotations
 
-import itertools
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym.robot import sensor_slices
+from zerith_gym.robot import sensor_blocks
 
 ASSET_PATH = Path(__file__).resolve().parent / "assets" / "go2like.xml"
 
@@ -118,14 +117,7 @@ class Sensors(NamedTuple):
     @staticmethod
     def layout(model) -> Sensors:
         """Slices of `data.sensordata` of every quantity; ValueError if a quantity's sensors are split."""
-        slices = sensor_slices(model)
-        blocks = {}
-        for quantity, names in SENSOR_GROUPS.items():
-            parts = [slices[name] for name in names]
-            if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
-                raise ValueError(f"sensors {names} must be contiguous in the model")
-            blocks[quantity] = slice(parts[0].start, parts[-1].stop)
-        return Sensors(**blocks)
+        return Sensors(**sensor_blocks(model, SENSOR_GROUPS))
 
     def read(self, sensordata: np.ndarray) -> Sensors:
         """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""

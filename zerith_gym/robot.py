@@ -108,15 +108,21 @@ class Sensors(NamedTuple):
     @staticmethod
     def layout(model) -> Sensors:
         """Slices of `data.sensordata` of every quantity; ValueError if a quantity's sensors are split."""
-        slices = sensor_slices(model)
-        blocks = {}
-        for quantity, names in SENSOR_GROUPS.items():
-            parts = [slices[name] for name in names]
-            if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
-                raise ValueError(f"sensors {names} must be contiguous in the model")
-            blocks[quantity] = slice(parts[0].start, parts[-1].stop)
-        return Sensors(**blocks)
+        return Sensors(**sensor_blocks(model, SENSOR_GROUPS))
 
     def read(self, sensordata: np.ndarray) -> Sensors:
         """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""
         return Sensors(*(sensordata[:, block] for block in self))
+
+
+def sensor_blocks(model, groups: dict[str, tuple[str, ...]]) -> dict[str, slice]:
+    """For each quantity of `groups` (its sensors' names, in order), its slice of `data.sensordata`;
+    ValueError if a quantity's sensors are not contiguous in the model."""
+    slices = sensor_slices(model)
+    blocks = {}
+    for quantity, names in groups.items():
+        parts = [slices[name] for name in names]
+        if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
+            raise ValueError(f"sensors {names} must be contiguous in the model")
+        blocks[quantity] = slice(parts[0].start, parts[-1].stop)
+    return blocks
