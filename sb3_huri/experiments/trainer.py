@@ -146,7 +146,7 @@ def _build_model(
 ) -> Any:  # fmt: skip
     """A new model of the preset, or the run's newest checkpoint loaded with `overrides`, on `env`."""
     from sb3_huri import HuRiPPO
-    from sb3_huri.zoo.checkpoints import restore_random_states, start_on_levels
+    from sb3_huri.zoo.checkpoints import RunState, restore_random_states, start_on_levels
     from sb3_huri.zoo.presets import preset_model
 
     if not request.is_resume():
@@ -161,8 +161,6 @@ def _build_model(
         **overrides,
     )  # fmt: skip
     restore_random_states(request.run)
-    from sb3_huri.zoo.checkpoints import RunState
-
     state = RunState.read(request.run)
     if state.timesteps != model.num_timesteps:
         print(f"warning: {request.run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
