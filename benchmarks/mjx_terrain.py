@@ -3,11 +3,11 @@
     python benchmarks/mjx_terrain.py                     # the shipped HuRi agent, 12 robots, 200 steps
     python benchmarks/mjx_terrain.py --agent runs/huri/Zerith1-v0_1 --robots 24
 
-Robots start at the centres of the tiles of every kind at three levels (no spawn jitter, no randomization,
-so both backends start from the same states) and walk at 0.5 m/s with the agent's deterministic policy.
-Printed per backend: the step of each robot's first fall (- for none); and the first step at which the
-two backends' policy observations part by more than 0.05 (the agent's inputs: a different ground under the
-feet shows there first). docs/gpu.md has the figures.
+Robots start at the centres of the tiles of the paper's four kinds (`PAPER_TILE_KINDS`) at three levels (no
+spawn jitter, no randomization, so both backends start from the same states) and walk at 0.5 m/s with the
+agent's deterministic policy. Printed per backend: the step of each robot's first fall (- for none); and
+the first step at which the two backends' policy observations part by more than 0.05 (the agent's inputs:
+a different ground under the feet shows there first). docs/gpu.md has the figures.
 """
 
 from __future__ import annotations
@@ -22,14 +22,14 @@ import zerith_gym
 from sb3_huri.zoo import load_run
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import tile_terrain
-from zerith_gym.tiles import TILE_KINDS
+from zerith_gym.tiles import PAPER_TILE_KINDS
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def rollout(backend: str, agent: Path, robots: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Policy observations (steps, robots, 46) and each robot's first fall step (-1: none)."""
-    terrain = replace(tile_terrain(kinds=TILE_KINDS, levels=3, start_levels=3), spawn_jitter=0.0)
+    terrain = replace(tile_terrain(kinds=PAPER_TILE_KINDS, levels=3, start_levels=3), spawn_jitter=0.0)
     scenario = Scenario("tiles-nominal", terrain=terrain)
     options = {"workers": 0} if backend == "cpu" else {}
     env = zerith_gym.make_vec_env(
@@ -63,7 +63,7 @@ def main() -> None:
     first = [int(np.argmax(row)) if row.any() else -1 for row in parted.T]
     print("robot: kind, level | first fall cpu / mjx | observations part at step")
     for i in range(args.robots):
-        kind, level = TILE_KINDS[i % len(TILE_KINDS)], (i // len(TILE_KINDS)) % 3
+        kind, level = PAPER_TILE_KINDS[i % len(PAPER_TILE_KINDS)], (i // len(PAPER_TILE_KINDS)) % 3
         falls = " / ".join("-" if f < 0 else str(f) for f in (cpu_fall[i], mjx_fall[i]))
         print(f"{i:3d}: {kind:10s} {level} | {falls:>9s} | {'-' if first[i] < 0 else first[i]}")
     print(

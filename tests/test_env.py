@@ -219,7 +219,7 @@ def test_package_exports():
     assert set(zerith_gym.SCENARIOS) == {
         "train", "nominal", "continuous-centroid", "continuous-hands", "continuous-feet", "sudden-centroid",
         "sudden-hands", "sudden-feet", "load", "friction", "load-friction", "uneven", "side-impact", "robust",
-        "terrain", "multi-terrain", "platform-0.40", "platform-0.45",
+        "terrain", "multi-terrain", "platform-0.40", "platform-0.45", "quadruped-train", "quadruped-rough",
     }  # fmt: skip
     assert tuple(zerith_gym.DEFAULT_REWARD_WEIGHTS) == zerith_gym.REWARD_NAMES
 

@@ -115,17 +115,36 @@ def test_masses_and_geometry_follow_the_published_figures(model: mujoco.MjModel)
             np.testing.assert_allclose(b.mass, a.mass)
 
 
-def test_only_the_foot_spheres_can_touch_anything(model: mujoco.MjModel) -> None:
+def test_only_the_ground_touches_the_feet_trunk_thighs_and_calves(model: mujoco.MjModel) -> None:
     colliding = {
         model.geom(g).name for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]
     }
-    assert colliding == {"floor", *quad.FOOT_GEOMS}
+    links = {f"{leg}_{link}" for leg in quad.LEGS for link in ("thigh", "calf")}
+    assert colliding == {"floor", "trunk", *quad.FOOT_GEOMS, *links}
     feet = [model.geom(name) for name in quad.FOOT_GEOMS]
     for foot in feet:
         assert foot.type == mujoco.mjtGeom.mjGEOM_SPHERE and foot.size[0] == quad.FOOT_RADIUS
         assert model.body(int(foot.bodyid[0])).name in quad.FOOT_BODIES
-    # No two feet collide with each other.
-    assert not any(a.contype & b.conaffinity or b.contype & a.conaffinity for a in feet for b in feet)
+    # No two geoms of the robot collide with each other: only the ground starts contacts.
+    robot_geoms = [model.geom(name) for name in colliding - {"floor"}]
+    assert not any(
+        a.contype & b.conaffinity or b.contype & a.conaffinity for a in robot_geoms for b in robot_geoms
+    )
+
+
+def test_a_fallen_robot_lies_on_its_trunk_and_the_contact_sensors_see_it(model: mujoco.MjModel) -> None:
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(quad.HOME_KEYFRAME).id)
+    data.qpos[3:7] = [0.0, 1.0, 0.0, 0.0]  # upside down: legs up, the trunk 0.2645 m above the floor
+    data.ctrl[:] = quad.DEFAULT_JOINT_POS
+    for _ in range(400):
+        mujoco.mj_step(model, data)
+    readings = quad.Sensors.layout(model).read(data.sensordata[None])
+    assert readings.base_contact[0, 0] > 0
+    assert np.all(readings.foot_force[0] == 0.0)  # the feet are in the air
+    home = _home(model)
+    standing = quad.Sensors.layout(model).read(home.sensordata[None])
+    assert standing.base_contact[0, 0] == 0 and not standing.leg_contact.any()
 
 
 def test_home_keyframe_stands_on_the_floor_with_knees_pointing_backward(model: mujoco.MjModel) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import replace
 
 import gymnasium
@@ -17,10 +18,18 @@ from zerith_gym.physics import build_model
 from zerith_gym.scenarios import SCENARIOS, Scenario
 from zerith_gym.terrain import Terrain, TerrainSpec, tile_terrain
 from zerith_gym.terrain_levels import LevelRule, TerrainLevels, next_levels
-from zerith_gym.tiles import TILE_KINDS, TileGrid, tile_heights
+from zerith_gym.tiles import (
+    LEGGED_GYM_PROPORTIONS,
+    PAPER_TILE_KINDS,
+    TILE_KINDS,
+    TileGrid,
+    legged_gym_kinds,
+    tile_heights,
+)
 
 SMALL = {"levels": 3, "tile_size": 6.0, "border": 2.0}
 """A small grid of every kind: 3 levels of 6-m tiles."""
+STAIRS = ("stairs_up", "stairs_down")
 
 
 def _tile_block(grid: TileGrid, heights: np.ndarray, level: int, column: int, resolution: float):
@@ -47,7 +56,7 @@ def test_every_kind_builds_the_same_for_the_same_seed_and_meets_its_neighbours_a
 
 
 def test_each_kind_has_the_shape_and_height_its_level_gives() -> None:
-    grid = TileGrid(kinds=TILE_KINDS, **SMALL)
+    grid = TileGrid(kinds=PAPER_TILE_KINDS, **SMALL)
     heights = tile_heights(grid, 0.1, seed=0)
     run = (grid.tile_size - grid.spawn_size) / 2
     centre = round(grid.tile_size / 0.2)  # the middle vertex of a tile
@@ -65,6 +74,157 @@ def test_each_kind_has_the_shape_and_height_its_level_gives() -> None:
         assert platform[centre, centre] == pytest.approx(grid.at_level(grid.platform_height, level))
         assert platform.max() == platform[centre, centre] and platform[0, 0] == 0.0
     assert grid.at_level(grid.slope, 0) == grid.slope[0] and grid.at_level(grid.slope, 2) == grid.slope[1]
+
+
+OLD_KIND_HASHES = {
+    (PAPER_TILE_KINDS, 4): "c7ac048ecc54d477d0e2036c6767b33a398e6964e61595a9781a384b90666271",
+    (("discrete", "slope_up", "discrete", "slope_down", "slope_up"), 7): (
+        "2e6c2696801a1b597b5ee90a3e5cfec7c5da761799e834f8e05cc0f4d6545399"
+    ),
+}
+"""sha256 of the heights of SMALL grids of the paper's kinds (kinds, seed), taken before the smooth slopes and
+the stairs were added (numpy 2.4.6): those kinds' heights and random draws must not change."""
+
+
+def test_the_paper_kinds_build_the_heights_they_built_before_the_new_kinds() -> None:
+    for (kinds, seed), expected in OLD_KIND_HASHES.items():
+        heights = tile_heights(TileGrid(kinds=kinds, **SMALL), 0.1, seed)
+        assert hashlib.sha256(heights.tobytes()).hexdigest() == expected, kinds
+    # the new kinds draw nothing: the paper's kinds beside them get the same tiles as without them
+    mixed = TileGrid(kinds=("stairs_up", "slope_up", "smooth_slope_down", "discrete", "stairs_down"), **SMALL)
+    alone = TileGrid(kinds=("slope_up", "discrete"), **SMALL)
+    with_new, without = tile_heights(mixed, 0.1, 3), tile_heights(alone, 0.1, 3)
+    for level in range(SMALL["levels"]):
+        for column, old_column in ((1, 0), (3, 1)):
+            np.testing.assert_array_equal(
+                _tile_block(mixed, with_new, level, column, 0.1),
+                _tile_block(alone, without, level, old_column, 0.1),
+            )
+
+
+def _centre_row(grid: TileGrid, heights: np.ndarray, level: int, column: int) -> np.ndarray:
+    """A tile's heights along the row through its centre, from its -x edge to its centre (0.1 m cells)."""
+    tile = _tile_block(grid, heights, level, column, 0.1)
+    middle = round(grid.tile_size / 0.2)
+    return tile[middle, : middle + 1]
+
+
+@pytest.mark.parametrize(
+    ("stair_width", "stair_height", "steps", "tread_cells"),
+    [(0.31, (0.05, 0.2), 6, (3, 4)), (0.5, (0.1, 0.3), 4, (5,))],  # 0.5 m: every riser on a vertex line
+)
+def test_stairs_climb_whole_steps_from_the_centre_to_the_edge(
+    stair_width: float, stair_height: tuple[float, float], steps: int, tread_cells: tuple[int, ...]
+) -> None:
+    grid = TileGrid(kinds=STAIRS, stair_width=stair_width, stair_height=stair_height, **SMALL)
+    heights = tile_heights(grid, 0.1, seed=0)
+    assert grid.stair_steps == steps  # the landing's step: those that fit in the 2 m from the edge in SMALL
+    spawn, middle = round(grid.spawn_size / 0.2), round(grid.tile_size / 0.2)
+    for level in range(grid.levels):
+        rise = grid.at_level(stair_height, level)
+        assert rise == pytest.approx(stair_height[0] + (stair_height[1] - stair_height[0]) * level / 2)
+        for column, sign in ((0, -1.0), (1, 1.0)):  # up: sunk towards the centre; down: raised
+            tile = _tile_block(grid, heights, level, column, 0.1)
+            assert np.all(tile[[0, -1], :] == 0.0) and np.all(tile[:, [0, -1]] == 0.0)
+            landing = tile[middle - spawn : middle + spawn + 1, middle - spawn : middle + spawn + 1]
+            assert np.all(landing == sign * steps * rise)  # the spawn square: flat, the last step
+            index = sign * tile / rise  # the step each vertex is on
+            np.testing.assert_allclose(index, np.round(index), atol=1e-9)
+            assert np.round(index).min() == 0 and np.round(index).max() == steps
+            row = np.round(sign * _centre_row(grid, heights, level, column) / rise).astype(int)
+            assert set(np.diff(row)) == {0, 1}  # from the edge inwards: one step at a time, never down
+            starts = np.flatnonzero(np.diff(row)) + 1  # first vertex (0.1 m cells) of steps 1 .. steps
+            np.testing.assert_array_equal(row[starts], np.arange(1, steps + 1))
+            distance = starts * 0.1
+            edges = np.arange(1, steps + 1) * stair_width
+            assert np.all((distance >= edges - 1e-9) & (distance < edges + 0.1 - 1e-9))
+            assert set(np.diff(starts)) <= set(tread_cells)
+            np.testing.assert_array_equal(tile, tile.T)  # square rings: the same whichever way it walks
+
+
+def test_smooth_slopes_are_the_rough_slopes_without_bumps() -> None:
+    kinds = ("smooth_slope_up", "smooth_slope_down", "slope_up", "slope_down")
+    grid = TileGrid(kinds=kinds, **SMALL)
+    heights = tile_heights(grid, 0.1, seed=1)
+    spawn, middle = round(grid.spawn_size / 0.2), round(grid.tile_size / 0.2)
+    for level in range(grid.levels):
+        gradient = grid.at_level(grid.slope, level)
+        up, down, rough_up, rough_down = (_tile_block(grid, heights, level, k, 0.1) for k in range(4))
+        np.testing.assert_array_equal(up, -down)
+        assert np.all(down[[0, -1], :] == 0.0) and np.all(down[:, [0, -1]] == 0.0)
+        assert np.all(
+            down[middle - spawn : middle + spawn + 1, middle - spawn : middle + spawn + 1] == down.max()
+        )
+        assert down.max() == pytest.approx(gradient * grid.run, abs=1e-12)
+        run_cells = round(grid.run / 0.1)
+        np.testing.assert_allclose(np.diff(down[middle, : run_cells + 1]), gradient * 0.1, atol=1e-12)
+        np.testing.assert_array_equal(down, down.T)
+        assert (
+            np.abs(up - rough_up).max() <= grid.roughness
+            and np.abs(down - rough_down).max() <= grid.roughness
+        )
+        if level > 0:
+            assert np.all(np.diff(down[middle, : middle + 1]) >= 0)  # no bumps: never down towards the top
+
+
+def test_repeated_kinds_give_repeated_columns() -> None:
+    grid = TileGrid(kinds=("stairs_down", "discrete", "stairs_down", "discrete"), **SMALL)
+    heights = tile_heights(grid, 0.1, seed=0)
+    for level in range(grid.levels):
+        stairs, blocks, stairs_again, blocks_again = (
+            _tile_block(grid, heights, level, k, 0.1) for k in range(4)
+        )
+        np.testing.assert_array_equal(stairs, stairs_again)  # no random draws
+        assert not np.array_equal(blocks, blocks_again)  # drawn again for each tile
+
+
+def test_legged_gym_kinds_lay_out_its_mix_by_its_proportions() -> None:
+    assert legged_gym_kinds() == (
+        "smooth_slope_up", "smooth_slope_down", "slope_down", "slope_down", *("stairs_up",) * 7,
+        *("stairs_down",) * 5, *("discrete",) * 4,
+    )  # fmt: skip
+    kind_of_type = {
+        "smooth_slope": ("smooth_slope_up", "smooth_slope_down"),
+        "rough_slope": ("slope_down",),
+        "stairs_up": ("stairs_up",),
+        "stairs_down": ("stairs_down",),
+        "discrete": ("discrete",),
+    }
+    assert sum(share for _, share in LEGGED_GYM_PROPORTIONS) == pytest.approx(1.0)
+    for columns in range(1, 101):
+        kinds = legged_gym_kinds(columns)
+        assert len(kinds) == columns and set(kinds) <= set(TILE_KINDS)
+        for name, share in LEGGED_GYM_PROPORTIONS:
+            count = sum(kind in kind_of_type[name] for kind in kinds)
+            if columns % 20 == 0:
+                assert count == round(share * columns), (columns, name)
+            else:
+                assert abs(count - share * columns) < 1.0, (columns, name)
+        if columns % 20 == 0:
+            assert kinds.count("smooth_slope_up") == kinds.count("smooth_slope_down")
+    spec = tile_terrain(kinds=legged_gym_kinds(), levels=2, tile_size=6.0, border=2.0)
+    heights = Terrain(spec, seed=0).heights
+    assert spec.num_columns == 20 and np.isfinite(heights).all()
+    assert heights.min() < 0 < heights.max()  # stairs and slopes up sink, stairs and slopes down rise
+
+
+def test_robots_start_on_the_new_kinds_and_stand_on_the_ground() -> None:
+    kinds = ("smooth_slope_up", "smooth_slope_down", *STAIRS)
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=kinds, start_levels=3, **SMALL))
+    env = zerith_gym.make_vec_env(12, seed=0, scenario=scenario, workers=0)
+    env.reset()
+    for _ in range(5):
+        env.step(np.zeros((12, 12)))
+    base = np.array([data.qpos[:3] for data in env.robots.sim.datas])
+    expected = scenario.terrain.tiles.tile_centres((np.arange(12) // 4) % 3, np.arange(12) % 4)
+    assert np.abs(base[:, :2] - expected).max() < scenario.terrain.spawn_jitter + 0.05
+    ground = env.robots.terrain.height_at(base[:, :2])
+    assert np.all((base[:, 2] - ground > 0.6) & (base[:, 2] - ground < 1.1))
+    np.testing.assert_array_equal(ground, env.robots.terrain.height_at(expected))  # on the flat spawn square
+    columns, levels = np.arange(12) % 4, (np.arange(12) // 4) % 3
+    tilted = (levels > 0) | (columns >= 2)  # all but the level-0 slopes (gradient 0)
+    assert np.all(ground[tilted & (columns % 2 == 0)] < 0) and np.all(ground[tilted & (columns % 2 == 1)] > 0)
+    env.close()
 
 
 def test_heights_under_the_feet_are_mujocos_ground() -> None:
@@ -89,14 +249,15 @@ def test_heights_under_the_feet_are_mujocos_ground() -> None:
         if tolerance is not None:  # on the vertices the two agree up to float32 data
             assert error.max() < 1e-5
         else:  # inside a cell, MuJoCo's triangles and the bilinear look-up part by less than a cell's rise
-            assert np.median(error) < 1e-3 and error.max() < 0.5 * terrain.spec.tiles.step_height[1] + 0.05
+            rise = max(terrain.spec.tiles.step_height[1], terrain.spec.tiles.stair_height[1])
+            assert np.median(error) < 1e-3 and error.max() < 0.5 * rise + 0.05  # a block's or a step's edge
     floor = model.geom("floor")
     assert floor.pos[2] < terrain.lowest  # never above a pit of the field
 
 
 @pytest.mark.parametrize("workers", [0, 1])
 def test_robots_start_on_their_tiles_and_stand_on_the_ground(workers: int) -> None:
-    scenario = Scenario("tiles", terrain=tile_terrain(kinds=TILE_KINDS, start_levels=3, **SMALL))
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=PAPER_TILE_KINDS, start_levels=3, **SMALL))
     env = zerith_gym.make_vec_env(12, seed=0, scenario=scenario, workers=workers)
     env.reset()
     grid = scenario.terrain.tiles
@@ -114,7 +275,7 @@ def test_robots_start_on_their_tiles_and_stand_on_the_ground(workers: int) -> No
 
 
 def test_a_single_env_starts_on_the_tile_its_reset_asks_for() -> None:
-    scenario = Scenario("tiles", terrain=tile_terrain(kinds=TILE_KINDS, **SMALL))
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=PAPER_TILE_KINDS, **SMALL))
     single = gymnasium.make("Zerith1-v0", scenario=scenario).unwrapped
     single.reset(seed=0)
     at_start = single.data.qpos[:2].copy()
@@ -131,7 +292,7 @@ def test_a_single_env_starts_on_the_tile_its_reset_asks_for() -> None:
 @pytest.mark.parametrize("workers", [0, 1])
 def test_a_vec_env_starts_robots_on_the_tiles_its_options_ask_for(workers: int) -> None:
     """SB3's `set_options` with the single env's "tile" option, for some robots, in any worker's slice."""
-    scenario = Scenario("tiles", terrain=tile_terrain(kinds=TILE_KINDS, start_levels=1, **SMALL))
+    scenario = Scenario("tiles", terrain=tile_terrain(kinds=PAPER_TILE_KINDS, start_levels=1, **SMALL))
     env = zerith_gym.make_vec_env(12, seed=0, scenario=scenario, workers=workers)
     asked = {1: (2, 3), 7: (1, 0), 11: (2, 2)}  # robot 11 is in the last worker's slice
     env.set_options([{"tile": asked[i]} if i in asked else {} for i in range(12)])
@@ -252,6 +413,15 @@ def test_terrain_curriculum_warns_when_every_env_is_robot_0() -> None:
         (lambda: tile_terrain(tile_size=8.05), "whole number of cells"),
         (lambda: tile_terrain(border=0.25), "whole number of cells"),
         (lambda: TerrainSpec(kind="plane", tiles=TileGrid()), "needs a TileGrid"),
+        (lambda: TileGrid(stair_width=0.0), r"stair_width must be in \(0, 3\] m"),
+        (lambda: TileGrid(stair_width=3.1), r"stair_width must be in \(0, 3\] m"),
+        (lambda: TileGrid(tile_size=6.0, stair_width=float("nan")), r"stair_width must be in \(0, 2\] m"),
+        (lambda: TileGrid(stair_height=(0.2, 0.1)), "stair_height must be a range"),
+        (lambda: TileGrid(stair_height=(-0.05, 0.1)), "stair_height must be a range"),
+        (lambda: TileGrid(stair_height=(0.05, float("inf"))), "stair_height must be a range"),
+        (lambda: TileGrid(stair_height=0.1), "stair_height must be a range"),
+        (lambda: tile_terrain(kinds=("stairs_up",), stair_width=0.15), "at least two cells"),
+        (lambda: legged_gym_kinds(0), "columns must be a positive integer"),
         (lambda: LevelRule(demote_fraction=1.5), "demote_fraction"),
         (lambda: LevelRule(promote_distance=0.0), "promote_distance"),
     ],
@@ -259,6 +429,11 @@ def test_terrain_curriculum_warns_when_every_env_is_robot_0() -> None:
 def test_bad_terrain_options_are_refused(make, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         make()
+
+
+def test_narrow_stairs_are_refused_only_where_there_are_stairs() -> None:
+    assert tile_terrain(stair_width=0.15).tiles.stair_width == 0.15  # no stairs: not a step to fit in cells
+    assert TerrainSpec(kind="tiles", tiles=TileGrid(kinds=STAIRS, stair_width=0.15), resolution=0.05)
 
 
 def test_a_terrain_curriculum_needs_tiles() -> None:

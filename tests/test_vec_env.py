@@ -303,7 +303,11 @@ def test_every_backend_keeps_the_robots_contract():
 def test_the_worker_shared_block_holds_every_field_of_the_step_record():
     from zerith_gym.contract import BatchStep
     from zerith_gym.task import StepOutput
-    from zerith_gym.workers import BATCH_STEP_COLUMNS, STEP_OUTPUT_COLUMNS
+    from zerith_gym.robots import ROBOT_TASKS
+    from zerith_gym.workers import step_columns
 
-    assert list(STEP_OUTPUT_COLUMNS) == list(StepOutput._fields)
-    assert ["out", *BATCH_STEP_COLUMNS] == list(BatchStep._fields)
+    for task in ROBOT_TASKS.values():
+        out, batch = step_columns(task)
+        assert list(out) == list(StepOutput._fields)
+        assert ["out", *batch, "reward_names"] == list(BatchStep._fields)  # the names travel by value
+        assert out["policy_obs"][1] == (task.policy_size,) and out["terms"][1] == (len(task.reward_names),)

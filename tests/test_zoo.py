@@ -159,6 +159,18 @@ def test_rl_zoo_trains_the_robust_preset(tmp_path: Path) -> None:
         assert pickle.load(file).norm_obs_keys == ["policy"]
 
 
+def test_rl_zoo_trains_the_quadruped_preset_on_the_batched_env(tmp_path: Path) -> None:
+    """`rl_zoo3 train --algo huri-baseline --env Go2Like-v0`: the packaged preset, one batched env."""
+    command = [*rl_zoo3_command(), "train", "--algo", "huri-baseline", "--env", "Go2Like-v0", "-conf", CONF,
+               "-n", "256", "--eval-freq", "-1", "--seed", "0", "-f", "logs", "--num-threads", "1",
+               "-params", "n_envs:2", "n_steps:64"]  # fmt: skip
+    run(command, tmp_path)
+    folder = tmp_path / "logs" / "huri-baseline" / "Go2Like-v0_1"
+    model = HuRiPPO.load(folder / "Go2Like-v0.zip")
+    assert model.observation_space["policy"].shape == (235,) and model.num_timesteps == 256
+    assert len(list(folder.glob("*.monitor.csv"))) == 1  # one batched env, not one env per robot
+
+
 @requires_hook
 def test_rl_zoo_trains_on_terrains_with_the_terrain_curriculum(tmp_path: Path) -> None:
     """`rl_zoo3 train -conf hyperparams/huri_terrain.yml`: the terrain scenario and the level's log."""

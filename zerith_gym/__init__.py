@@ -1,6 +1,6 @@
 """zerith_gym: the Zerith1-v0 humanoid locomotion environment (MuJoCo, Gymnasium).
 
-Importing the package registers `Zerith1-v0`:
+Importing the package registers `Zerith1-v0` and `Go2Like-v0` (a Go2-like quadruped on legged_gym's task):
 
     import gymnasium as gym
     import zerith_gym  # noqa: F401
@@ -33,6 +33,11 @@ __all__ = [
 register(
     id="Zerith1-v0",
     entry_point="zerith_gym.envs.zerith1:Zerith1Env",
+    max_episode_steps=EPISODE_STEPS,
+)
+register(
+    id="Go2Like-v0",
+    entry_point="zerith_gym.envs.go2like:Go2LikeEnv",
     max_episode_steps=EPISODE_STEPS,
 )
 

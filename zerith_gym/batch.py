@@ -11,7 +11,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from zerith_gym import robot
 from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
 from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import resolve_reward_weights
@@ -35,17 +34,19 @@ class ZerithBatch:
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
-        self.sim = Simulator(num_robots, self.terrain, physics_threads)
+        task = options.task
+        self.sim = Simulator(num_robots, self.terrain, physics_threads, task.robot)
         model = self.sim.models[0]
         self.task = ZerithTask(
             num_robots,
             self.scenario,
-            robot.Sensors.layout(model),
+            task.robot.sensor_layout(model),
             task_constants(
                 self.terrain,
-                np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
-                resolve_reward_weights(options.reward_weights),
+                np.array([model.joint(name).range for name in task.robot.joint_names]),
+                resolve_reward_weights(options.reward_weights, task.reward_weights),
                 int(options.episode_steps),
+                task,
             ),
             options.fixed_command(self.scenario),
             first_robot,
@@ -55,6 +56,8 @@ class ZerithBatch:
         """Follow `scenario` from now on (see `ZerithTask.set_scenario`); its terrain and force target
         must be those of the current one, which the models were built for."""
         check_scenario_change(self.scenario, scenario)
+        for target in scenario.force.targets:
+            self.options.task.robot.force_target_bodies(target)
         self.scenario = scenario
         self.task.set_scenario(scenario, self.options.fixed_command(scenario))
 
@@ -108,7 +111,9 @@ class ZerithBatch:
         if len(ended):  # the reset writes into the task's arrays: keep the step's values
             policy, critic = policy.copy(), critic.copy()
             policy[ended], critic[ended] = self.reset(ended)
-        return BatchStep(out, force, command, policy, critic, self.task.state.command, level)
+        return BatchStep(
+            out, force, command, policy, critic, self.task.state.command, level, self.task.task.reward_names
+        )
 
     def close(self) -> None:
         self.sim.close()

@@ -18,12 +18,15 @@ import numpy as np
 from zerith_gym import robot
 from zerith_gym.arrays import namespace
 
+FORCE_TARGET_NAMES = ("centroid", "hands", "feet")
+"""Where a force can act: the root body, each hand, each foot (`RobotSpec.force_bodies` names the bodies)."""
 FORCE_TARGETS = {
     "centroid": (robot.ROOT_BODY,),
     "hands": robot.HAND_BODIES,
     "feet": robot.FOOT_BODIES,
 }
-TARGET_INDEX = {name: index for index, name in enumerate(FORCE_TARGETS)}
+"""Zerith-1's bodies of each force target."""
+TARGET_INDEX = {name: index for index, name in enumerate(FORCE_TARGET_NAMES)}
 """Index of each target in `FORCE_TARGETS`, as the per-step force target tables hold it."""
 FORCE_DRAWS = 2
 """Uniform numbers in [0, 1) consumed by one force draw: magnitude and direction."""
@@ -54,6 +57,11 @@ class ForceSchedule:
     @property
     def active(self) -> bool:
         return self.magnitude[1] > 0.0
+
+    @property
+    def targets(self) -> tuple[str, ...]:
+        """The targets it pushes (none if it never pushes)."""
+        return (self.target,) if self.active else ()
 
     @property
     def start_offsets(self) -> tuple[int, ...]:
@@ -109,6 +117,11 @@ class ForceCycle:
     @property
     def active(self) -> bool:
         return any(s.active for s in self.schedules)
+
+    @property
+    def targets(self) -> tuple[str, ...]:
+        """The targets its schedules push, each once."""
+        return tuple(dict.fromkeys(t for s in self.schedules for t in s.targets))
 
     @property
     def magnitude(self) -> tuple[float, float]:

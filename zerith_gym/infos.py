@@ -57,7 +57,7 @@ class RobotInfo(MutableMapping[str, Any]):
         if key == "command":
             return self._step.command[i].copy()
         if key == "reward_terms":
-            return TermValues(out.terms[i])
+            return TermValues(out.terms[i], self._step.reward_names)
         if key == "terrain_level":
             return int(self._step.terrain_level[i])
         if key == "TimeLimit.truncated":

@@ -11,10 +11,10 @@ import numpy as np
 from gymnasium import spaces
 
 from zerith_gym import robot
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import resolve_reward_weights
+from zerith_gym.robots import locomotion_task
 from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.task import EPISODE_STEPS, HUMANOID_TASK, LocomotionTask
 
 OBS_MODES = ("dict", "policy")
 RESET_OPTIONS = ("command",)
@@ -37,8 +37,9 @@ class ZerithOptions:
     Checked on construction: a bad value raises ValueError saying what is allowed.
     """
 
-    scenario: str | Scenario = "train"
-    """A name in `zerith_gym.SCENARIOS`, or a custom `Scenario`."""
+    scenario: str | Scenario | None = None
+    """A name in `zerith_gym.SCENARIOS`, or a custom `Scenario`; None: the robot's training scenario
+    ("train" for Zerith-1, "quadruped-train" for the quadruped)."""
     obs_mode: str = "dict"
     """"dict": `Dict(policy=Box(46), critic=Box(139))`; "policy": the 46-d policy Box alone."""
     command: tuple[float, float, float] | None = None
@@ -49,14 +50,19 @@ class ZerithOptions:
     """Seed of the height field's heights, uneven or tiles (fixed for the env's lifetime)."""
     episode_steps: int = EPISODE_STEPS
     """Control steps before the time-out truncation (1000: 20 s)."""
+    robot: str = "zerith1"
+    """Which robot (`zerith_gym.robots.ROBOT_TASKS`): "zerith1", or "go2like" (the `Go2Like-v0` env's)."""
 
     def __post_init__(self) -> None:
         if self.obs_mode not in OBS_MODES:
             raise ValueError(f"unknown obs_mode {self.obs_mode!r}; valid values: {', '.join(OBS_MODES)}")
-        resolve_scenario(self.scenario)
+        task = locomotion_task(self.robot)
+        scenario = self.resolved_scenario
+        for target in scenario.force.targets:
+            task.robot.force_target_bodies(target)
         if self.command is not None:
             check_command(self.command, "command")
-        resolve_reward_weights(self.reward_weights)
+        resolve_reward_weights(self.reward_weights, task.reward_weights)
         if not isinstance(self.episode_steps, int | np.integer) or self.episode_steps < 1:
             raise ValueError(f"episode_steps must be a positive integer, got {self.episode_steps!r}")
 
@@ -70,8 +76,13 @@ class ZerithOptions:
         return cls(**kwargs)
 
     @property
+    def task(self) -> LocomotionTask:
+        """The robot's task: what it observes and is rewarded for."""
+        return locomotion_task(self.robot)
+
+    @property
     def resolved_scenario(self) -> Scenario:
-        return resolve_scenario(self.scenario)
+        return resolve_scenario(self.task.default_scenario if self.scenario is None else self.scenario)
 
     def fixed_command(self, scenario: Scenario) -> tuple[float, float, float] | None:
         """The fixed command of every episode in `scenario`, if any: the option's, else the scenario's."""
@@ -93,12 +104,12 @@ def reset_command(options: Mapping[str, Any] | None, also_valid: tuple[str, ...]
     return check_command(options["command"], "options['command']")
 
 
-def observation_space(obs_mode: str) -> spaces.Space:
-    """The observation space of one robot for `obs_mode`."""
-    policy = spaces.Box(-np.inf, np.inf, shape=(POLICY_SIZE,), dtype=np.float32)
+def observation_space(obs_mode: str, task: LocomotionTask = HUMANOID_TASK) -> spaces.Space:
+    """The observation space of one robot of `task` for `obs_mode`."""
+    policy = spaces.Box(-np.inf, np.inf, shape=(task.policy_size,), dtype=np.float32)
     if obs_mode == "policy":
         return policy
-    critic = spaces.Box(-np.inf, np.inf, shape=(CRITIC_SIZE,), dtype=np.float32)
+    critic = spaces.Box(-np.inf, np.inf, shape=(task.critic_size,), dtype=np.float32)
     return spaces.Dict({"policy": policy, "critic": critic})
 
 

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from zerith_gym import robot
 from zerith_gym.arrays import namespace
 from zerith_gym.randomization import NUM_LINKS, DomainParams
+from zerith_gym.robot import ZERITH1
+from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.terrain import Terrain
 
 BAD_STATE_WARNINGS = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
@@ -22,12 +23,12 @@ GROUND_CLEARANCE = 0.002
 """Gap (m) left between the lowest sole sphere and the ground when the robot is placed at reset."""
 
 
-def build_model(terrain: Terrain) -> mujoco.MjModel:
-    """Compile the robot MJCF with the terrain's ground, at the package's physics time step."""
-    spec = mujoco.MjSpec.from_file(str(robot.ASSET_PATH))
+def build_model(terrain: Terrain, robot: RobotSpec = ZERITH1) -> mujoco.MjModel:
+    """Compile the robot's MJCF with the terrain's ground, at the robot's physics time step."""
+    spec = mujoco.MjSpec.from_file(str(robot.asset_path))
     terrain.add_to(spec)
     model = spec.compile()
-    model.opt.timestep = robot.PHYSICS_DT
+    model.opt.timestep = robot.physics_dt
     return model
 
 
@@ -47,17 +48,18 @@ class NominalModel:
     root: int
     links: np.ndarray
     friction_geoms: np.ndarray
-    sole_geoms: np.ndarray  # (feet * corners,) the sole spheres, left foot's first
-    sole_radius: np.ndarray  # (feet * corners,)
+    sole_geoms: np.ndarray  # the spheres that touch the ground (`RobotSpec.contact_geoms`), in its order
+    sole_radius: np.ndarray  # their radii
+    default_ctrl: np.ndarray  # (joints,) the default pose, commanded at reset
     scale_column: np.ndarray  # per body: 0 (unscaled), 1 (root), 2 + k (link k) of the mass factors
 
     @staticmethod
-    def capture(model: mujoco.MjModel, terrain: Terrain) -> NominalModel:
-        root = model.body(robot.ROOT_BODY).id
+    def capture(model: mujoco.MjModel, terrain: Terrain, robot: RobotSpec = ZERITH1) -> NominalModel:
+        root = model.body(robot.root_body).id
         links = np.array([b for b in range(1, model.nbody) if b != root])
         if len(links) != NUM_LINKS:
             raise RuntimeError(f"expected {NUM_LINKS} non-root robot bodies, found {len(links)}")
-        soles = np.array([model.geom(name).id for foot in robot.SOLE_GEOMS for name in foot])
+        soles = np.array([model.geom(name).id for name in robot.contact_geoms])
         ground = np.array([model.geom(name).id for name in terrain.ground_geoms])
         scale_column = np.zeros(model.nbody, dtype=int)
         scale_column[root] = 1
@@ -78,6 +80,7 @@ class NominalModel:
             sole_geoms=soles,
             sole_radius=model.geom_size[soles, 0].copy(),
             scale_column=scale_column,
+            default_ctrl=robot.default_joint_pos,
         )
 
 
@@ -181,7 +184,7 @@ def reset_states(
     for model, data, q in zip(models, datas, qpos, strict=True):
         mujoco.mj_resetData(model, data)
         data.qpos[:] = q
-        data.ctrl[:] = robot.DEFAULT_JOINT_POS
+        data.ctrl[:] = nominal.default_ctrl
         mujoco.mj_kinematics(model, data)
     lowest = lowest_sole_clearance(
         np.array([data.geom_xpos[soles] for data in datas]), nominal.sole_radius, terrain

@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from zerith_gym.robot import sensor_blocks
+from zerith_gym.robot_spec import RobotSpec
 
 ASSET_PATH = Path(__file__).resolve().parent / "assets" / "go2like.xml"
 
@@ -91,6 +92,8 @@ SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
     "foot_pos": tuple(f"{foot}_pos" for foot in FOOT_BODIES),
     "foot_linvel": tuple(f"{foot}_linvel" for foot in FOOT_BODIES),
     "foot_force": tuple(f"{foot}_force" for foot in FOOT_BODIES),
+    "base_contact": ("base_contact",),
+    "leg_contact": tuple(f"{leg}_{link}_contact" for leg in LEGS for link in ("thigh", "calf")),
 }
 """Each quantity a task reads, and the MJCF sensors it is made of (contiguous, in this order)."""
 
@@ -113,6 +116,8 @@ class Sensors(NamedTuple):
     foot_pos: np.ndarray  # (12) each foot sphere's centre, xyz
     foot_linvel: np.ndarray  # (12) xyz per foot
     foot_force: np.ndarray  # (12) ground reaction on each foot, xyz
+    base_contact: np.ndarray  # (1) contacts between the trunk and the ground (> 0: touching)
+    leg_contact: np.ndarray  # (8) contacts of each thigh and calf with the ground, FL thigh, FL calf, ...
 
     @staticmethod
     def layout(model) -> Sensors:
@@ -122,3 +127,22 @@ class Sensors(NamedTuple):
     def read(self, sensordata: np.ndarray) -> Sensors:
         """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""
         return Sensors(*(sensordata[:, block] for block in self))
+
+
+GO2LIKE = RobotSpec(
+    name="go2like",
+    asset_path=ASSET_PATH,
+    joint_names=JOINT_NAMES,
+    default_joint_pos=DEFAULT_JOINT_POS,
+    action_scale=ACTION_SCALE,
+    total_mass=TOTAL_MASS,
+    root_body=ROOT_BODY,
+    force_bodies={"centroid": (ROOT_BODY,), "hands": (), "feet": FOOT_BODIES},
+    contact_geoms=FOOT_GEOMS,
+    foot_bodies=FOOT_BODIES,
+    standing_height=STANDING_HEIGHT,
+    physics_dt=PHYSICS_DT,
+    control_dt=CONTROL_DT,
+    sensor_layout=Sensors.layout,
+)
+"""The Go2-like quadruped as the shared machinery reads it (`zerith_gym.robot_spec.RobotSpec`)."""

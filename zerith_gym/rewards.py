@@ -248,40 +248,42 @@ class TermValues(Mapping[str, float]):
     `dict(values)` makes a plain dict. The row is never written after it is handed out.
     """
 
-    __slots__ = ("_row",)
+    __slots__ = ("_names", "_row")
 
-    def __init__(self, row: np.ndarray) -> None:
-        self._row = row
+    def __init__(self, row: np.ndarray, names: tuple[str, ...] = REWARD_NAMES) -> None:
+        self._row, self._names = row, names
 
     def __getitem__(self, name: str) -> float:
-        return float(self._row[_COLUMN[name]])
+        if name not in self._names:
+            raise KeyError(name)
+        return float(self._row[self._names.index(name)])
 
     def __iter__(self) -> Iterator[str]:
-        return iter(REWARD_NAMES)
+        return iter(self._names)
 
     def __len__(self) -> int:
-        return len(REWARD_NAMES)
+        return len(self._names)
 
     def __repr__(self) -> str:
-        return repr(dict(zip(REWARD_NAMES, self._row.tolist(), strict=True)))
+        return repr(dict(zip(self._names, self._row.tolist(), strict=True)))
 
 
-_COLUMN = {name: k for k, name in enumerate(REWARD_NAMES)}
-
-
-def resolve_reward_weights(overrides: Mapping[str, float] | None = None) -> np.ndarray:
-    """The weight vector (K,) in `REWARD_NAMES` order: the defaults with `overrides` applied."""
-    weights = dict(DEFAULT_REWARD_WEIGHTS)
+def resolve_reward_weights(
+    overrides: Mapping[str, float] | None = None, defaults: Mapping[str, float] = DEFAULT_REWARD_WEIGHTS
+) -> np.ndarray:
+    """The weight vector (K,) in the order of `defaults` (a task's terms and weights; Zerith-1's unless
+    given) with `overrides` applied; ValueError on an unknown term or a non-finite weight."""
+    weights = dict(defaults)
     for name, value in (overrides or {}).items():
         if name not in weights:
             raise ValueError(
-                f"unknown reward term {name!r} in reward_weights; valid terms: {', '.join(REWARD_NAMES)}"
+                f"unknown reward term {name!r} in reward_weights; valid terms: {', '.join(defaults)}"
             )
         value = float(value)
         if not np.isfinite(value):
             raise ValueError(f"reward_weights[{name!r}] must be finite, got {value}")
         weights[name] = value
-    return np.array([weights[name] for name in REWARD_NAMES])
+    return np.array([weights[name] for name in defaults])
 
 
 # ----------------------------------------------------------------------------------- the fused path

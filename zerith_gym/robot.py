@@ -12,6 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from zerith_gym.robot_spec import RobotSpec
+
 ASSET_PATH = Path(__file__).resolve().parent / "assets" / "zerith1.xml"
 
 LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
@@ -126,3 +128,22 @@ def sensor_blocks(model, groups: dict[str, tuple[str, ...]]) -> dict[str, slice]
             raise ValueError(f"sensors {names} must be contiguous in the model")
         blocks[quantity] = slice(parts[0].start, parts[-1].stop)
     return blocks
+
+
+ZERITH1 = RobotSpec(
+    name="zerith1",
+    asset_path=ASSET_PATH,
+    joint_names=JOINT_NAMES,
+    default_joint_pos=DEFAULT_JOINT_POS,
+    action_scale=ACTION_SCALE,
+    total_mass=TOTAL_MASS,
+    root_body=ROOT_BODY,
+    force_bodies={"centroid": (ROOT_BODY,), "hands": HAND_BODIES, "feet": FOOT_BODIES},
+    contact_geoms=tuple(name for foot in SOLE_GEOMS for name in foot),
+    foot_bodies=FOOT_BODIES,
+    standing_height=STANDING_HEIGHT,
+    physics_dt=PHYSICS_DT,
+    control_dt=CONTROL_DT,
+    sensor_layout=Sensors.layout,
+)
+"""Zerith-1 as the shared machinery reads it (`zerith_gym.robot_spec.RobotSpec`)."""

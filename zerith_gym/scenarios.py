@@ -9,6 +9,7 @@ from zerith_gym.commands import CommandRanges
 from zerith_gym.disturbances import NO_FORCE, ForceCycle, ForceProgram, ForceSchedule
 from zerith_gym.randomization import NOMINAL, TEST_COM, TEST_FRICTION, TEST_LOAD, TRAIN, RandomizationRanges
 from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec, tile_terrain
+from zerith_gym.tiles import legged_gym_kinds
 
 TEST_COMMAND = (1.0, 0.0, 0.0)
 """The evaluation command: 1 m/s forward (beyond the training range), no turning."""
@@ -95,6 +96,49 @@ def _platform(height: float) -> Scenario:
     )
 
 
+QUADRUPED_TRAIN = Scenario(
+    "quadruped-train",
+    RandomizationRanges(
+        friction=(0.5, 1.25),
+        added_mass=(-1.0, 1.0),
+        init_joint_scale=(0.5, 1.5),
+        push_velocity=(0.0, 1.0),
+        push_interval_s=15.0,
+        observation_noise=1.0,
+    ),
+    command_ranges=CommandRanges(
+        vx=(-1.0, 1.0),
+        vy=(-1.0, 1.0),
+        yaw_rate=(-1.0, 1.0),
+        standing_probability=0.0,
+        resample_interval_s=10.0,
+    ),
+)
+"""legged_gym's training conditions for the quadruped (`Go2Like-v0`'s default), on flat ground: the feet's
+friction U[0.5, 1.25], a load of U[-1, 1] kg on the trunk, joints starting at U[0.5, 1.5] times the default
+pose, a push of up to 1 m/s every 15 s, sensor noise, and commands up to 1 m/s forward and sideways and
+1 rad/s turning, redrawn every 10 s."""
+
+
+QUADRUPED_ROUGH = replace(
+    QUADRUPED_TRAIN,
+    name="quadruped-rough",
+    terrain=tile_terrain(
+        kinds=legged_gym_kinds(20),
+        levels=10,
+        start_levels=5,
+        slope=(0.0, 0.4),
+        roughness=0.05,
+        step_height=(0.05, 0.25),
+        stair_height=(0.05, 0.23),
+    ),
+)
+"""legged_gym's rough-terrain training of the quadruped (the paper's appendix A.6): `quadruped-train` on 20
+columns of tiles in legged_gym's mix (smooth slopes, rough slopes down, stairs up and down, discrete
+blocks) and 10 levels, robots starting on the lowest five (a `TerrainCurriculum` moves them). Slopes up to
+0.4, discrete blocks 0.05-0.25 m and steps 0.05-0.23 m high over the levels, legged_gym's ranges."""
+
+
 def _build() -> dict[str, Scenario]:
     scenarios = [
         Scenario("train", TRAIN, ForceSchedule("centroid", (0.0, 10.0), period_steps=5, duration_steps=5)),
@@ -135,6 +179,8 @@ def _build() -> dict[str, Scenario]:
         ),
         _platform(0.40),
         _platform(0.45),
+        QUADRUPED_TRAIN,
+        QUADRUPED_ROUGH,
     ]
     return {s.name: s for s in scenarios}
 

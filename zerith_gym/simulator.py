@@ -1,4 +1,4 @@
-"""MuJoCo simulation of n Zerith-1 robots: one model and data per robot.
+"""MuJoCo simulation of n robots of one kind (Zerith-1, the Go2-like quadruped): one model and data per robot.
 
 Each robot has its own `MjModel` copy because domain randomization edits model fields (masses, friction,
 gains) per robot. A control step of robot i is a few `mj_step(model, data, nstep)` calls in C, one per
@@ -23,10 +23,11 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.disturbances import FORCE_TARGETS
+from zerith_gym.disturbances import FORCE_TARGET_NAMES
 from zerith_gym.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_states
 from zerith_gym.randomization import DomainParams
+from zerith_gym.robot import ZERITH1
+from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.terrain import Terrain
 
 Segments = list[tuple[int, int]]
@@ -71,23 +72,25 @@ class _Robot(NamedTuple):
 class Simulator:
     """The physics of `num_robots` robots on one terrain, with external forces on the bodies of a target.
 
-    `threads`: how many threads step the robots' physics (at most one per robot).
+    `threads`: how many threads step the robots' physics (at most one per robot); `robot`: which robot.
     """
 
-    def __init__(self, num_robots: int, terrain: Terrain, threads: int = 1) -> None:
+    def __init__(
+        self, num_robots: int, terrain: Terrain, threads: int = 1, robot: RobotSpec = ZERITH1
+    ) -> None:
         if not isinstance(threads, int | np.integer) or threads < 1:
             raise ValueError(f"the number of physics threads must be a positive integer, got {threads!r}")
-        model = build_model(terrain)
+        model = build_model(terrain, robot)
         self.terrain = terrain
         self.models = [model] + [copy.copy(model) for _ in range(num_robots - 1)]
-        bodies = [[model.body(name).id for name in names] for names in FORCE_TARGETS.values()]
+        bodies = [[model.body(name).id for name in robot.force_bodies.get(t, ())] for t in FORCE_TARGET_NAMES]
         self._robots = [_Robot.of(m, bodies) for m in self.models]
         self.datas = [robot_.data for robot_ in self._robots]
-        self.nominal = NominalModel.capture(model, terrain)
+        self.nominal = NominalModel.capture(model, terrain, robot)
         self.sensordata = np.zeros((num_robots, model.nsensordata))
         """Every robot's sensor readings after the last reset or step, (num_robots, nsensordata)."""
         self._qvel = np.zeros((num_robots, model.nv))
-        self._segments: list[Segments] = [[(0, robot.DECIMATION)]] * num_robots
+        self._segments: list[Segments] = [[(0, robot.decimation)]] * num_robots
         self._warned = np.zeros(num_robots, dtype=bool)
         self._force_target = [0] * num_robots  # the target whose bodies each robot's force was last set on
         groups = min(int(threads), num_robots)
@@ -110,7 +113,7 @@ class Simulator:
         """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.
 
         `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each body of the
-        robot's `force_target` (n,) (an index of `FORCE_TARGETS`), none on the other targets' bodies;
+        robot's `force_target` (n,) (an index of `FORCE_TARGET_NAMES`), none on the other targets' bodies;
         `kicks` (n, 2): horizontal velocity added to the base, or None. A simulation is unstable if
         MuJoCo raised a bad-state warning during the step (it then resets the state) or if it ends with
         non-finite velocities.

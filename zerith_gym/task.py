@@ -22,7 +22,10 @@ robots stepped together follow exactly the trajectories of n single environments
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -47,7 +50,8 @@ from zerith_gym.randomization import (
     domain_bounds,
     uniform_in,
 )
-from zerith_gym.rewards import RewardInputs, reward_terms_for
+from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, RewardInputs, reward_terms_for
+from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import Terrain
 from zerith_gym.terrain_levels import LevelRule, TerrainLevels
@@ -63,24 +67,52 @@ CONTACT_THRESHOLD = 1.0
 JOINT_SOFT_LIMIT = 0.95
 """Share of each joint's range (centred) beyond which the joint-limit penalty applies."""
 
-_NOISE = slice(0, POLICY_SIZE)
-_FORCE = slice(_NOISE.stop, _NOISE.stop + FORCE_DRAWS)
-_COMMAND = slice(_FORCE.stop, _FORCE.stop + COMMAND_DRAWS)
-_PUSH = slice(_COMMAND.stop, _COMMAND.stop + PUSH_DRAWS)
-STEP_DRAWS = _PUSH.stop
-"""Uniform numbers each robot draws per control step, used or not, to keep streams aligned."""
-_RESET = layout_slices(
-    (
-        ("domain", DOMAIN_DRAWS),
-        ("joint_scale", robot.NUM_JOINTS),
-        ("roll_pitch", 2),
-        ("spawn", 2),
-        ("command", COMMAND_DRAWS),
-        ("step", STEP_DRAWS),
+
+class Draws(NamedTuple):
+    """Where each use of a robot's uniform numbers lies in its draws of a step and of a reset.
+
+    Each robot draws `step` uniforms per control step (policy noise, force, command, push) and `reset` per
+    reset, used or not, to keep its random stream aligned; the sizes follow its task's policy observation
+    and joint count (`draw_layout`).
+    """
+
+    noise: slice
+    force: slice
+    command: slice
+    push: slice
+    step: int
+    """Uniforms per control step."""
+    reset_parts: Mapping[str, slice]
+    """A reset's parts: domain, joint_scale, roll_pitch, spawn, command, step (the first observation's)."""
+    reset: int
+    """Uniforms per reset."""
+
+
+def draw_layout(policy_size: int, num_joints: int) -> Draws:
+    """The draws of a task whose policy observation has `policy_size` values, for `num_joints` joints."""
+    noise = slice(0, policy_size)
+    force = slice(noise.stop, noise.stop + FORCE_DRAWS)
+    command = slice(force.stop, force.stop + COMMAND_DRAWS)
+    push = slice(command.stop, command.stop + PUSH_DRAWS)
+    reset = layout_slices(
+        (
+            ("domain", DOMAIN_DRAWS),
+            ("joint_scale", num_joints),
+            ("roll_pitch", 2),
+            ("spawn", 2),
+            ("command", COMMAND_DRAWS),
+            ("step", push.stop),
+        )
     )
-)
-RESET_DRAWS = _RESET["step"].stop
-"""Uniform numbers each robot draws per reset, in the order of `_RESET`."""
+    return Draws(noise, force, command, push, push.stop, reset, reset["step"].stop)
+
+
+HUMANOID_DRAWS = draw_layout(POLICY_SIZE, robot.NUM_JOINTS)
+"""Zerith-1's draws."""
+STEP_DRAWS = HUMANOID_DRAWS.step
+"""Uniform numbers each Zerith-1 robot draws per control step, used or not, to keep streams aligned."""
+RESET_DRAWS = HUMANOID_DRAWS.reset
+"""Uniform numbers each Zerith-1 robot draws per reset, in the order of `Draws.reset_parts`."""
 _COS_FALL_TILT = float(np.cos(FALL_TILT))
 GAIT_TABLE = gait.cycle_table(robot.CONTROL_DT)
 """Every clock-driven signal at each control step of a gait cycle (see `gait.cycle_table`)."""
@@ -115,9 +147,13 @@ class ScenarioArrays(NamedTuple):
 
 
 def scenario_arrays(
-    scenario: Scenario, command: tuple[float, float, float] | None, episode_steps: int
+    scenario: Scenario,
+    command: tuple[float, float, float] | None,
+    episode_steps: int,
+    noise_scale: np.ndarray | None = None,
 ) -> ScenarioArrays:
-    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`.
+    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`, with
+    `noise_scale` the training noise of each policy observation entry (None: Zerith-1's).
 
     The force table covers twice the episode, so that an episode may start anywhere in its first half
     (`ForceCycle.start_phases`); ValueError if the force program starts episodes later than that.
@@ -155,7 +191,7 @@ def scenario_arrays(
         standing_probability=np.array(scenario.command_ranges.standing_probability),
         fixed_command=np.zeros(3) if command is None else np.asarray(command, dtype=float),
         has_fixed_command=np.array(command is not None),
-        noise_scale=policy_noise_scale() * ranges.observation_noise,
+        noise_scale=(policy_noise_scale() if noise_scale is None else noise_scale) * ranges.observation_noise,
         init_roll_pitch=np.array(ranges.init_roll_pitch, dtype=float),
         init_joint_scale=np.array(ranges.init_joint_scale, dtype=float),
     )
@@ -173,12 +209,17 @@ class ResetValues(NamedTuple):
 
 
 def reset_values(
-    uniforms: np.ndarray, sc: ScenarioArrays, spawn_xy: np.ndarray, spawn_jitter: float
+    uniforms: np.ndarray,
+    sc: ScenarioArrays,
+    spawn_xy: np.ndarray,
+    spawn_jitter: float,
+    robot: RobotSpec = robot.ZERITH1,
+    draws: Draws = HUMANOID_DRAWS,
 ) -> ResetValues:
-    """The start of new episodes from uniforms (n, RESET_DRAWS) in [0, 1), in the order of `_RESET`, at
-    spawn points `spawn_xy` (n, 2) moved by up to `spawn_jitter` m along x and y."""
+    """The start of new episodes of `robot` from uniforms (n, draws.reset) in [0, 1), in the order of
+    `draws.reset_parts`, at spawn points `spawn_xy` (n, 2) moved by up to `spawn_jitter` m along x and y."""
     xp = namespace(uniforms)
-    u = {name: uniforms[:, part] for name, part in _RESET.items()}
+    u = {name: uniforms[:, part] for name, part in draws.reset_parts.items()}
     half_roll_pitch = uniform_in((-1.0, 1.0), u["roll_pitch"]) * sc.init_roll_pitch / 2
     (cr, cp), (sr, sp) = xp.cos(half_roll_pitch).T, xp.sin(half_roll_pitch).T
     spawn = uniform_in((-1.0, 1.0), u["spawn"]) * spawn_jitter
@@ -187,7 +228,7 @@ def reset_values(
         [
             spawn_xy + spawn,
             xp.stack([xp.zeros_like(cr), cp * cr, cp * sr, sp * cr, -sp * sr], axis=1),
-            robot.DEFAULT_JOINT_POS * joint_scale,
+            robot.default_joint_pos * joint_scale,
         ],
         axis=1,
     )
@@ -197,20 +238,20 @@ def reset_values(
     # The start offset takes the first observation's force uniform, which nothing else reads (no force is
     # drawn at a reset): scenarios with one start offset draw exactly what they drew without any.
     choices = sc.force_offsets.shape[0]
-    pick = xp.minimum((u["step"][:, _FORCE.start] * choices).astype(int), choices - 1)
+    pick = xp.minimum((u["step"][:, draws.force.start] * choices).astype(int), choices - 1)
     return ResetValues(
         qpos=qpos,
         domain_vector=domain_vector,
-        lags=delay_lags(domain.action_delay, robot.PHYSICS_DT, robot.DECIMATION),
+        lags=delay_lags(domain.action_delay, robot.physics_dt, robot.decimation),
         command=xp.where(sc.has_fixed_command, sc.fixed_command, drawn),
         noise_uniforms=u["step"],
         force_offset=sc.force_offsets[pick],
     )
 
 
-def action_targets(actions: np.ndarray) -> np.ndarray:
+def action_targets(actions: np.ndarray, robot: RobotSpec = robot.ZERITH1) -> np.ndarray:
     """Joint targets (n, lags, 12) of an action history (n, lags, 12) in [-1, 1], newest first."""
-    return robot.DEFAULT_JOINT_POS + robot.ACTION_SCALE * actions
+    return robot.default_joint_pos + robot.action_scale * actions
 
 
 class Disturbances(NamedTuple):
@@ -230,22 +271,23 @@ def step_disturbances(
     force: np.ndarray,
     command: np.ndarray,
     sc: ScenarioArrays,
+    draws: Draws = HUMANOID_DRAWS,
 ) -> Disturbances:
     """Redraw forces, commands and pushes where the scenario's tables say at each robot's episode step
-    `step_count` (n,) (the force table at `step_count + force_offset`), from uniforms (n, STEP_DRAWS)."""
+    `step_count` (n,) (the force table at `step_count + force_offset`), from uniforms (n, draws.step)."""
     xp = namespace(uniforms, step_count)
     due = sc.due[step_count]
     at = step_count + force_offset
     force_due = sc.force_due[at]
-    drawn_force = horizontal_vectors(uniforms[:, _FORCE], sc.force_magnitude[at], sc.force_direction[at])
+    drawn_force = horizontal_vectors(uniforms[:, draws.force], sc.force_magnitude[at], sc.force_direction[at])
     drawn_command = commands_from_uniforms(
-        uniforms[:, _COMMAND], sc.command_low, sc.command_high, sc.standing_probability
+        uniforms[:, draws.command], sc.command_low, sc.command_high, sc.standing_probability
     )
     return Disturbances(
         force=xp.where(force_due[:, 0:1], drawn_force, force) * force_due[:, 1:2],
         force_target=sc.force_target[at],
         command=xp.where(due[:, 0:1], drawn_command, command),
-        kicks=horizontal_vectors(uniforms[:, _PUSH], sc.push_velocity)[:, :2] * due[:, 1:2],
+        kicks=horizontal_vectors(uniforms[:, draws.push], sc.push_velocity)[:, :2] * due[:, 1:2],
         push=due[:, 1],
     )
 
@@ -329,9 +371,9 @@ def observations(
     return policy.astype(np.float32), critic
 
 
-def observation_noise(uniforms: np.ndarray, sc: ScenarioArrays) -> np.ndarray:
-    """The policy observation noise (n, POLICY_SIZE) from a step's uniforms (n, STEP_DRAWS)."""
-    return (2.0 * uniforms[:, _NOISE] - 1.0) * sc.noise_scale
+def observation_noise(uniforms: np.ndarray, sc: ScenarioArrays, draws: Draws = HUMANOID_DRAWS) -> np.ndarray:
+    """The policy observation noise (n, policy size) from a step's uniforms (n, draws.step)."""
+    return (2.0 * uniforms[:, draws.noise] - 1.0) * sc.noise_scale
 
 
 def reward_inputs(
@@ -394,18 +436,25 @@ class TaskConstants(NamedTuple):
     """What the task functions need from the robot model and the env options."""
 
     terrain: Terrain
-    reward_weights: np.ndarray  # (K,) weights times the control period, `REWARD_NAMES` order
+    reward_weights: np.ndarray  # (K,) weights times the control period, in the task's reward order
     soft_limits: tuple[np.ndarray, np.ndarray]  # (12,) each: soft joint limits of the joint-limit term
     episode_steps: int
+    task: LocomotionTask  # the robot and what its task observes and rewards
 
 
 def task_constants(
-    terrain: Terrain, joint_range: np.ndarray, reward_weights: np.ndarray, episode_steps: int
+    terrain: Terrain,
+    joint_range: np.ndarray,
+    reward_weights: np.ndarray,
+    episode_steps: int,
+    task: LocomotionTask | None = None,
 ) -> TaskConstants:
-    """`TaskConstants` from the model's joint ranges (12, 2) and the unscaled reward weights (K,)."""
+    """`TaskConstants` from the model's joint ranges (12, 2) and the unscaled reward weights (K,) of
+    `task` (None: Zerith-1's, `HUMANOID_TASK`)."""
+    task = HUMANOID_TASK if task is None else task
     centre, half = joint_range.mean(axis=1), 0.5 * (joint_range[:, 1] - joint_range[:, 0])
-    soft = (centre - JOINT_SOFT_LIMIT * half, centre + JOINT_SOFT_LIMIT * half)
-    return TaskConstants(terrain, reward_weights * robot.CONTROL_DT, soft, episode_steps)
+    soft = (centre - task.soft_limit * half, centre + task.soft_limit * half)
+    return TaskConstants(terrain, reward_weights * task.robot.control_dt, soft, episode_steps, task)
 
 
 class Judgement(NamedTuple):
@@ -512,39 +561,52 @@ class TaskState(NamedTuple):
     lags: np.ndarray  # (n, DECIMATION) int, control steps of delay of each physics sub-step
     policy_obs: np.ndarray  # (n, POLICY_SIZE) float32, the last observation
     critic_obs: np.ndarray  # (n, CRITIC_SIZE) float32
+    feet_air_time: np.ndarray  # (n, feet) s since each foot last touched the ground (tasks that reward it)
+    last_contact: np.ndarray  # (n, feet) bool, each foot's contact at the last step
 
     @staticmethod
-    def zeros(n: int) -> TaskState:
-        """The state of n robots before their first reset (numpy)."""
+    def zeros(n: int, task: LocomotionTask | None = None) -> TaskState:
+        """The state of n robots of `task` (None: Zerith-1's) before their first reset (numpy)."""
+        task = HUMANOID_TASK if task is None else task
+        joints, feet = task.robot.num_joints, len(task.robot.foot_bodies)
         return TaskState(
             step_count=np.zeros(n, dtype=int),
             force_offset=np.zeros(n, dtype=int),
             gait_step=np.zeros(n, dtype=int),
             command=np.zeros((n, 3)),
-            actions=np.zeros((n, 3, robot.NUM_JOINTS)),
-            joint_vel=np.zeros((n, robot.NUM_JOINTS)),
+            actions=np.zeros((n, 3, joints)),
+            joint_vel=np.zeros((n, joints)),
             force=np.zeros((n, 3)),
             domain_vector=np.zeros((n, DOMAIN_VECTOR_SIZE)),
-            lags=np.zeros((n, robot.DECIMATION), dtype=int),
-            policy_obs=np.zeros((n, POLICY_SIZE), dtype=np.float32),
-            critic_obs=np.zeros((n, CRITIC_SIZE), dtype=np.float32),
+            lags=np.zeros((n, task.robot.decimation), dtype=int),
+            policy_obs=np.zeros((n, task.policy_size), dtype=np.float32),
+            critic_obs=np.zeros((n, task.critic_size), dtype=np.float32),
+            feet_air_time=np.zeros((n, feet)),
+            last_contact=np.zeros((n, feet), dtype=bool),
         )
 
 
 def begin_step(
-    state: TaskState, actions: np.ndarray, uniforms: np.ndarray, sc: ScenarioArrays
+    state: TaskState,
+    actions: np.ndarray,
+    uniforms: np.ndarray,
+    sc: ScenarioArrays,
+    task: LocomotionTask | None = None,
 ) -> tuple[TaskState, Disturbances, np.ndarray]:
     """The first half of a control step, before physics, for both backends.
 
-    From checked actions (n, 12) and the step's uniforms (n, STEP_DRAWS): the state with the new action
-    history, force and command; the step's disturbances; the joint targets (n, 3, 12) of the last three
-    actions (index = control steps of lag).
+    From checked actions (n, 12) and the step's uniforms (n, draws.step) of `task` (None: Zerith-1's): the
+    state with the new action history, force and command; the step's disturbances; the joint targets
+    (n, 3, 12) of the last three actions (index = control steps of lag).
     """
+    task = HUMANOID_TASK if task is None else task
     xp = namespace(actions, state.actions)
     history = xp.concatenate([actions[:, None], state.actions[:, :2]], axis=1)
-    drawn = step_disturbances(uniforms, state.step_count, state.force_offset, state.force, state.command, sc)
+    drawn = step_disturbances(
+        uniforms, state.step_count, state.force_offset, state.force, state.command, sc, task.draws
+    )
     state = state._replace(actions=history, force=drawn.force, command=drawn.command)
-    return state, drawn, action_targets(history)
+    return state, drawn, action_targets(history, task.robot)
 
 
 def end_step(
@@ -558,18 +620,8 @@ def end_step(
     step's outcome, from the sensor readings (zeros where `unstable`) and the observation noise."""
     xp = namespace(state.step_count)
     step_count = state.step_count + 1
-    gait_step = (state.gait_step + 1) % len(GAIT_TABLE)
-    e = judge_step(
-        readings,
-        gait_step,
-        state.command,
-        state.actions,
-        state.joint_vel,
-        state.force,
-        state.domain_vector,
-        noise,
-        constants,
-    )
+    gait_step = (state.gait_step + 1) % constants.task.gait_steps
+    e, state = constants.task.judge(state, readings, gait_step, noise, constants)
     out = step_output(e, unstable, step_count, constants.episode_steps, state.policy_obs, state.critic_obs)
     state = state._replace(
         step_count=step_count,
@@ -581,8 +633,92 @@ def end_step(
     return state, out
 
 
+Judge = Callable[
+    [TaskState, Any, np.ndarray, "np.ndarray | None", TaskConstants], tuple[Judgement, TaskState]
+]
+"""(state before the step's end, sensor readings, gait step, noise, constants) -> the step judged, and the
+state with the task's own fields (feet air time, last contact) moved on."""
+Observe = Callable[[TaskState, Any, "np.ndarray | None", TaskConstants], tuple[np.ndarray, np.ndarray]]
+"""(state of the robots just reset, their sensor readings, noise, constants) -> policy, critic obs."""
+
+
+@dataclass(frozen=True, eq=False)
+class LocomotionTask:
+    """A robot's task: what it observes and is rewarded for, beside the step every robot shares.
+
+    `begin_step`, `end_step`, `step_output`, the resets, disturbances and the physics are the same for
+    every robot; each robot declares here its facts (`robot`), its observation sizes and noise, its reward
+    terms, and the two functions that read its sensors: `judge` after each step, `observe` after a reset.
+    """
+
+    robot: RobotSpec
+    policy_size: int
+    critic_size: int
+    noise_scale: np.ndarray
+    """(policy_size,) half width of each policy entry's uniform training noise."""
+    reward_weights: Mapping[str, float]
+    """Each reward term's default weight, in the order of the reward columns."""
+    judge: Judge
+    observe: Observe
+    gait_steps: int = 1
+    """Control steps in the gait clock's cycle (1: the task has no clock)."""
+    soft_limit: float = JOINT_SOFT_LIMIT
+    """Share of each joint's range (centred) beyond which the joint-limit penalty applies."""
+    default_scenario: str = "train"
+    """The scenario an env of this robot follows unless told otherwise."""
+
+    @cached_property
+    def draws(self) -> Draws:
+        return draw_layout(self.policy_size, self.robot.num_joints)
+
+    @property
+    def reward_names(self) -> tuple[str, ...]:
+        return tuple(self.reward_weights)
+
+
+def _humanoid_judge(
+    state: TaskState, r: robot.Sensors, gait_step: np.ndarray, noise: np.ndarray | None, c: TaskConstants
+) -> tuple[Judgement, TaskState]:
+    judged = judge_step(
+        r,
+        gait_step,
+        state.command,
+        state.actions,
+        state.joint_vel,
+        state.force,
+        state.domain_vector,
+        noise,
+        c,
+    )
+    return judged, state
+
+
+def _humanoid_observe(
+    state: TaskState, r: robot.Sensors, noise: np.ndarray | None, c: TaskConstants
+) -> tuple[np.ndarray, np.ndarray]:
+    clock = GAIT_TABLE[state.gait_step]
+    g = ground(r, c.terrain)
+    return observations(
+        r, g, clock, state.command, state.actions[:, 0], state.force, state.domain_vector, noise
+    )
+
+
+HUMANOID_TASK = LocomotionTask(
+    robot=robot.ZERITH1,
+    policy_size=POLICY_SIZE,
+    critic_size=CRITIC_SIZE,
+    noise_scale=policy_noise_scale(),
+    reward_weights=DEFAULT_REWARD_WEIGHTS,
+    judge=_humanoid_judge,
+    observe=_humanoid_observe,
+    gait_steps=len(GAIT_TABLE),
+)
+"""Zerith-1 walking with the paper's gait clock, observations and Table-4 rewards."""
+
+
 class ZerithTask:
-    """Task state of `num_robots` Zerith-1 robots in one scenario, on numpy (the CPU backend).
+    """Task state of `num_robots` robots in one scenario, on numpy (the CPU backend); which robot and task:
+    `constants.task`.
 
     Each robot has its own numpy random generator, drawing a fixed amount per reset and per step, so n
     robots stepped together follow exactly the trajectories of n single envs seeded alike.
@@ -603,12 +739,14 @@ class ZerithTask:
         """Each robot's tile of the terrain, and the terrain curriculum's rule (`set_level_rule`)."""
         self.episode_steps = constants.episode_steps
         self.sensors = sensors
+        self.task = constants.task
+        self.draws = self.task.draws
         self.set_scenario(scenario, command)
 
         self.rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
-        self.state = TaskState.zeros(n)
+        self.state = TaskState.zeros(n, self.task)
         """The robots' task state (numpy arrays, updated in place or replaced by the step)."""
-        self._uniforms = np.zeros((n, STEP_DRAWS))
+        self._uniforms = np.zeros((n, self.draws.step))
 
     def set_scenario(self, scenario: Scenario, command: tuple[float, float, float] | None = None) -> None:
         """Follow `scenario` (and a fixed `command`, if given) from now on.
@@ -618,7 +756,7 @@ class ZerithTask:
         between rollouts.
         """
         self.scenario = scenario
-        self.arrays = scenario_arrays(scenario, command, self.episode_steps)
+        self.arrays = scenario_arrays(scenario, command, self.episode_steps, self.task.noise_scale)
         self._noisy = bool(self.arrays.noise_scale.any())
 
     # ----------------------------------------------------------------------------------------- reset
@@ -629,11 +767,13 @@ class ZerithTask:
         (len(ids), 7 + 12) with the base height left at 0 (the caller places the feet on the ground).
         """
         ids = np.asarray(ids)
-        u = np.empty((len(ids), RESET_DRAWS))
+        u = np.empty((len(ids), self.draws.reset))
         for k, i in enumerate(ids.tolist()):
             self.rngs[i].random(out=u[k])
         spec = self.constants.terrain.spec
-        start = reset_values(u, self.arrays, self.tiles.spawn_points(ids), spec.spawn_jitter)
+        start = reset_values(
+            u, self.arrays, self.tiles.spawn_points(ids), spec.spawn_jitter, self.task.robot, self.draws
+        )
         self.tiles.started(ids, start.qpos[:, :2])
         state = self.state
         state.domain_vector[ids] = start.domain_vector
@@ -641,7 +781,15 @@ class ZerithTask:
         state.command[ids] = start.command
         state.force_offset[ids] = start.force_offset
         self._uniforms[ids] = start.noise_uniforms  # the first observation's noise
-        for started in (state.step_count, state.gait_step, state.actions, state.joint_vel, state.force):
+        for started in (
+            state.step_count,
+            state.gait_step,
+            state.actions,
+            state.joint_vel,
+            state.force,
+            state.feet_air_time,
+            state.last_contact,
+        ):
             started[ids] = 0
         return DomainParams.from_vector(start.domain_vector), start.qpos
 
@@ -664,7 +812,7 @@ class ZerithTask:
         u = self._uniforms
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
-        self.state, drawn, targets = begin_step(self.state, actions, u, self.arrays)
+        self.state, drawn, targets = begin_step(self.state, actions, u, self.arrays, self.task)
         return targets, drawn
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
@@ -672,7 +820,7 @@ class ZerithTask:
         if np.logical_or.reduce(unstable):
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
         readings = self.sensors.read(sensordata)
-        noise = observation_noise(self._uniforms, self.arrays) if self._noisy else None
+        noise = observation_noise(self._uniforms, self.arrays, self.draws) if self._noisy else None
         self.state, out = end_step(self.state, readings, unstable, noise, self.constants)
         ended = out.terminated | out.truncated
         self.tiles.record(readings.base_pos[:, :2], self.state.command, out.fall, ended, unstable)
@@ -682,18 +830,9 @@ class ZerithTask:
         """Policy and critic observations of robots `ids` right after their reset, from their sensors."""
         readings = self.sensors.read(sensordata)
         state = self.state
-        clock = GAIT_TABLE[state.gait_step[ids]]
-        noise = observation_noise(self._uniforms[ids], self.arrays) if self._noisy else None
-        policy, critic = observations(
-            readings,
-            ground(readings, self.constants.terrain),
-            clock,
-            state.command[ids],
-            state.actions[ids, 0],
-            state.force[ids],
-            state.domain_vector[ids],
-            noise,
-        )
+        noise = observation_noise(self._uniforms[ids], self.arrays, self.draws) if self._noisy else None
+        started = TaskState(*(field[ids] for field in state))
+        policy, critic = self.task.observe(started, readings, noise, self.constants)
         state.joint_vel[ids] = readings.joint_vel
         # New arrays: those of the last step were handed out (terminal observations of these robots).
         state = self.state = state._replace(

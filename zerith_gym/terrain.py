@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 
 from zerith_gym.arrays import namespace
-from zerith_gym.tiles import TileGrid, tile_heights
+from zerith_gym.tiles import STAIRS_KINDS, TileGrid, tile_heights
 
 TERRAIN_KINDS = ("plane", "uneven", "tiles")
 HFIELD_SOLREF = (0.01, 1.0)
@@ -57,6 +57,12 @@ class TerrainSpec:
                         f"the tiles' {name} ({getattr(self.tiles, name)} m) must be a whole number of cells "
                         f"of the terrain's resolution ({self.resolution} m), so that tiles start on vertices"
                     )
+            stairs = any(kind in STAIRS_KINDS for kind in self.tiles.kinds)
+            if stairs and self.tiles.stair_width < 2 * self.resolution - 1e-9:
+                raise ValueError(
+                    f"the tiles' stair_width ({self.tiles.stair_width} m) must be at least two cells of the "
+                    f"terrain's resolution ({self.resolution} m), so that every step has a flat cell"
+                )
 
     @property
     def num_levels(self) -> int:

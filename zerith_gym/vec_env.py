@@ -35,7 +35,6 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from zerith_gym import robot
 from zerith_gym.batch import ZerithBatch
 from zerith_gym.contract import Robots, check_num_robots
 from zerith_gym.infos import step_infos
@@ -47,7 +46,6 @@ from zerith_gym.options import (
     observation_space,
     reset_command,
 )
-from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule, check_tile
@@ -101,6 +99,11 @@ class ZerithVecEnv(VecEnv):
                 raise ValueError("workers and physics_threads are options of the cpu backend, not of mjx")
             from zerith_gym.mjx import MjxBatch, SolverSettings
 
+            if self.options.robot != "zerith1":
+                raise ValueError(
+                    f"the mjx backend simulates zerith1 only; use backend='cpu' for {self.options.robot}"
+                )
+
             self.workers = 0
             self.robots = MjxBatch(num_envs, self.options, SolverSettings(solver_iterations, ls_iterations))
         elif solver_iterations is not None or ls_iterations is not None:
@@ -114,12 +117,13 @@ class ZerithVecEnv(VecEnv):
         self.scenario = self.options.resolved_scenario
         self.obs_mode = self.options.obs_mode
         self.render_mode = None
-        super().__init__(num_envs, observation_space(self.obs_mode), ACTION_SPACE)
-        self._action_shape = (num_envs, robot.NUM_JOINTS)
+        self.reward_names = self.options.task.reward_names
+        super().__init__(num_envs, observation_space(self.obs_mode, self.options.task), ACTION_SPACE)
+        self._action_shape = (num_envs, *ACTION_SPACE.shape)
         self._actions = np.zeros(self._action_shape)
         self._returns = np.zeros(num_envs)
         self._lengths = np.zeros(num_envs, dtype=int)
-        self._term_sums = np.zeros((num_envs, len(REWARD_NAMES)))
+        self._term_sums = np.zeros((num_envs, len(self.reward_names)))
         self._start_time = time.time()
         self._reset_done = False
         self.terrain_levels = np.zeros(num_envs, dtype=int)
@@ -172,7 +176,7 @@ class ZerithVecEnv(VecEnv):
                 info["terminal_observation"] = format_observation(
                     self.obs_mode, out.policy_obs[i].copy(), out.critic_obs[i].copy()
                 )
-                info["episode_terms"] = dict(zip(REWARD_NAMES, self._term_sums[i].tolist(), strict=True))
+                info["episode_terms"] = dict(zip(self.reward_names, self._term_sums[i].tolist(), strict=True))
                 info["episode"] = {
                     "r": round(float(self._returns[i]), 6),
                     "l": int(self._lengths[i]),
@@ -238,8 +242,9 @@ def make_vec_env(n_envs: int, seed: int | None = None, **env_kwargs: Any) -> Zer
     """A `ZerithVecEnv` of `n_envs` robots; robot i is seeded with `seed + i` at the first reset.
 
     `env_kwargs` are the options of `ZerithOptions` (scenario, obs_mode, command, reward_weights,
-    terrain_seed, episode_steps), `backend` ("cpu" or "mjx"), and the backend's own: `workers`,
-    `physics_threads` (cpu), `solver_iterations`, `ls_iterations` (mjx); see `ZerithVecEnv`.
+    terrain_seed, episode_steps, robot: "go2like" for the quadruped), `backend` ("cpu" or "mjx"), and
+    the backend's own: `workers`, `physics_threads` (cpu), `solver_iterations`, `ls_iterations`
+    (mjx); see `ZerithVecEnv`.
     """
     env = ZerithVecEnv(n_envs, **env_kwargs)
     if seed is not None:

@@ -42,14 +42,11 @@ from typing import Any
 
 import numpy as np
 
-from zerith_gym import robot
 from zerith_gym.batch import ZerithBatch
 from zerith_gym.contract import BatchStep, check_scenario_change
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.options import ZerithOptions
-from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario
-from zerith_gym.task import StepOutput
+from zerith_gym.task import HUMANOID_TASK, LocomotionTask, StepOutput
 from zerith_gym.terrain_levels import LevelRule
 
 MIN_ROBOTS_PER_WORKER = 8
@@ -74,44 +71,55 @@ def default_workers(num_robots: int, cores: int | None = None) -> int:
     return max(min(cores, num_robots // MIN_ROBOTS_PER_WORKER) - 1, 0)
 
 
-STEP_OUTPUT_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
-    "policy_obs": (np.float32, (POLICY_SIZE,)),  # of the step (terminal where an episode ended)
-    "critic_obs": (np.float32, (CRITIC_SIZE,)),
-    "reward": (np.float64, ()),
-    "terminated": (np.bool_, ()),
-    "truncated": (np.bool_, ()),
-    "fall": (np.bool_, ()),
-    "sim_unstable": (np.bool_, ()),
-    "lin_vel_error": (np.float64, ()),
-    "ang_vel_error": (np.float64, ()),
-    "terms": (np.float64, (len(REWARD_NAMES),)),
-}
-"""Dtype and per-robot shape of each field of `StepOutput`: the step record the shared block holds."""
-BATCH_STEP_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
-    "force": (np.float64, (3,)),
-    "command": (np.float64, (3,)),
-    "policy_obs": (np.float32, (POLICY_SIZE,)),  # to act on next (after a reset where an episode ended)
-    "critic_obs": (np.float32, (CRITIC_SIZE,)),
-    "next_command": (np.float64, (3,)),
-    "terrain_level": (np.int64, ()),
-}
-"""The same for the fields of `BatchStep` other than `out`."""
+Columns = dict[str, tuple[type, tuple[int, ...]]]
+
+
+def step_columns(task: LocomotionTask) -> tuple[Columns, Columns]:
+    """Dtype and per-robot shape of each field of `StepOutput` (the step record the shared block holds),
+    and of the array fields of `BatchStep` other than `out`, for robots of `task`."""
+    policy, critic = (np.float32, (task.policy_size,)), (np.float32, (task.critic_size,))
+    out = {
+        "policy_obs": policy,  # of the step (terminal where an episode ended)
+        "critic_obs": critic,
+        "reward": (np.float64, ()),
+        "terminated": (np.bool_, ()),
+        "truncated": (np.bool_, ()),
+        "fall": (np.bool_, ()),
+        "sim_unstable": (np.bool_, ()),
+        "lin_vel_error": (np.float64, ()),
+        "ang_vel_error": (np.float64, ()),
+        "terms": (np.float64, (len(task.reward_names),)),
+    }
+    batch = {
+        "force": (np.float64, (3,)),
+        "command": (np.float64, (3,)),
+        "policy_obs": policy,  # to act on next (after a reset where an episode ended)
+        "critic_obs": critic,
+        "next_command": (np.float64, (3,)),
+        "terrain_level": (np.int64, ()),
+    }
+    return out, batch
+
+
+STEP_OUTPUT_COLUMNS, BATCH_STEP_COLUMNS = step_columns(HUMANOID_TASK)
+"""Zerith-1's columns (`step_columns`)."""
 _OUT = "out."
 """Prefix of the shared arrays of `StepOutput` fields."""
 
 
-def _fields(n: int) -> dict[str, tuple[type, tuple[int, ...]]]:
+def _fields(n: int, task: LocomotionTask) -> Columns:
     """Every array of the shared block: dtype and shape, for n robots (derived from the step record)."""
+    out, batch = step_columns(task)
     return {
-        "actions": (np.float64, (n, robot.NUM_JOINTS)),
-        **{_OUT + name: (dtype, (n, *shape)) for name, (dtype, shape) in STEP_OUTPUT_COLUMNS.items()},
-        **{name: (dtype, (n, *shape)) for name, (dtype, shape) in BATCH_STEP_COLUMNS.items()},
+        "actions": (np.float64, (n, task.robot.num_joints)),
+        **{_OUT + name: (dtype, (n, *shape)) for name, (dtype, shape) in out.items()},
+        **{name: (dtype, (n, *shape)) for name, (dtype, shape) in batch.items()},
     }
 
 
-def _block_size(n: int) -> int:
+def _block_size(n: int, task: LocomotionTask) -> int:
     return sum(
-        _aligned(np.dtype(dtype).itemsize * int(np.prod(shape))) for dtype, shape in _fields(n).values()
+        _aligned(np.dtype(dtype).itemsize * int(np.prod(shape))) for dtype, shape in _fields(n, task).values()
     )
 
 
@@ -119,10 +127,10 @@ def _aligned(size: int) -> int:
     return -(-size // 64) * 64
 
 
-def _views(buffer: Any, n: int) -> dict[str, np.ndarray]:
+def _views(buffer: Any, n: int, task: LocomotionTask) -> dict[str, np.ndarray]:
     """Numpy views of each array of the shared block `buffer`."""
     views, offset = {}, 0
-    for name, (dtype, shape) in _fields(n).items():
+    for name, (dtype, shape) in _fields(n, task).items():
         count = int(np.prod(shape))
         views[name] = np.frombuffer(buffer, dtype=dtype, count=count, offset=offset).reshape(shape)
         offset += _aligned(np.dtype(dtype).itemsize * count)
@@ -136,10 +144,11 @@ def _write_step(shared: dict[str, np.ndarray], rows: slice, step: BatchStep) -> 
         shared[name][rows] = getattr(step, name)
 
 
-def _read_step(shared: dict[str, np.ndarray]) -> BatchStep:
+def _read_step(shared: dict[str, np.ndarray], reward_names: tuple[str, ...]) -> BatchStep:
     """The step of every robot from the shared block (copies: the block is written again next step)."""
     out = StepOutput(**{name: shared[_OUT + name].copy() for name in STEP_OUTPUT_COLUMNS})
-    return BatchStep(out, **{name: shared[name].copy() for name in BATCH_STEP_COLUMNS})
+    batch = {name: shared[name].copy() for name in BATCH_STEP_COLUMNS}
+    return BatchStep(out, **batch, reward_names=reward_names)
 
 
 def _handle(batch: ZerithBatch, shared: dict[str, np.ndarray], rows: tuple[int, int], message: bytes) -> bool:
@@ -184,7 +193,7 @@ def _serve(
     if hasattr(os, "setpgid"):
         os.setpgid(0, 0)
     try:
-        shared = _views(block, num_robots)
+        shared = _views(block, num_robots, options.task)
         batch = ZerithBatch(rows[1] - rows[0], options, physics_threads, first_robot=rows[0])
     except BaseException:
         conn.send_bytes(pickle.dumps(traceback.format_exc()))
@@ -219,8 +228,9 @@ class WorkerPool:
         self.num_robots = num_robots
         self.scenario = options.resolved_scenario
         self._seeds: dict[int, np.random.Generator] = {}
-        self._block = context.RawArray(ctypes.c_byte, _block_size(num_robots))
-        self._shared = _views(self._block, num_robots)
+        self._block = context.RawArray(ctypes.c_byte, _block_size(num_robots, options.task))
+        self._shared = _views(self._block, num_robots, options.task)
+        self._reward_names = options.task.reward_names
         bounds = np.linspace(0, num_robots, workers + 2).round().astype(int).tolist()
         self._rows = list(itertools.pairwise(bounds))  # slice 0: this process; slice k: worker k - 1
         self._conns: list[Connection] = []
@@ -293,7 +303,7 @@ class WorkerPool:
         shared = self._shared
         shared["actions"][:] = actions
         self._run(dict.fromkeys(range(len(self._rows)), _STEP), "stepping")
-        return _read_step(shared)
+        return _read_step(shared, self._reward_names)
 
     def close(self) -> None:
         """Stop the worker processes (waiting for them to finish their current message)."""

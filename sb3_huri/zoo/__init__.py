@@ -95,13 +95,16 @@ def use_packaged_hyperparameters() -> None:
 
 
 ZERITH_ENTRY_POINT = "zerith_gym.envs.zerith1:Zerith1Env"
+ROBOT_ENTRY_POINTS = {ZERITH_ENTRY_POINT: "zerith1", "zerith_gym.envs.go2like:Go2LikeEnv": "go2like"}
+"""The entry points of the envs `zerith_gym.make_vec_env` batches, and the robot of each."""
 
 
 def use_batched_zerith_env() -> None:
     """Let ``rl_zoo3 train`` step Zerith robots with ``zerith_gym.make_vec_env`` (a slice of robots per
     core) instead of RL Zoo's ``DummyVecEnv`` of one env per robot: several times faster, same transitions.
 
-    It applies to envs registered with the ``Zerith1Env`` entry point, with RL Zoo's default ``--vec-env
+    It applies to envs registered with an entry point of ``ROBOT_ENTRY_POINTS`` (``Zerith1-v0``,
+    ``Go2Like-v0``), with RL Zoo's default ``--vec-env
     dummy`` and no ``env_wrapper``, ``vec_env_wrapper`` or ``frame_stack``; anything else takes RL Zoo's own
     path. Robot i is seeded ``seed + i`` as RL Zoo seeds env i, episodes go to one ``0.monitor.csv`` in the
     run folder (RL Zoo's plots read it), and ``VecNormalize`` is applied as RL Zoo applies it.
@@ -123,11 +126,12 @@ def use_batched_zerith_env() -> None:
 
         plain = self.env_wrapper is None and self.vec_env_wrapper is None and self.frame_stack is None
         spec = gym.spec(self.env_name.gym_id)
-        if not (plain and self.vec_env_class is DummyVecEnv and spec.entry_point == ZERITH_ENTRY_POINT):
+        if not (plain and self.vec_env_class is DummyVecEnv and spec.entry_point in ROBOT_ENTRY_POINTS):
             return create_envs(self, n_envs, eval_env, no_log)
         env_kwargs = {
             **(spec.kwargs or {}),
             **((self.eval_env_kwargs if eval_env else self.env_kwargs) or {}),
+            "robot": ROBOT_ENTRY_POINTS[spec.entry_point],
         }
         env = zerith_gym.make_vec_env(n_envs, seed=self.seed, **env_kwargs)
         log_dir = None if eval_env or no_log else self.save_path

@@ -18,7 +18,6 @@ from zerith_gym.options import (
     observation_space,
     reset_command,
 )
-from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule
@@ -87,15 +86,23 @@ class Zerith1Env(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": round(1.0 / robot.CONTROL_DT)}
     policy_mirror = POLICY_MIRROR
     action_mirror = ACTION_MIRROR
+    robot = "zerith1"
+    """The robot this env simulates (its `robot` option may only repeat it)."""
 
     def __init__(
         self, render_mode: str | None = None, width: int = 640, height: int = 480, **options: Any
     ) -> None:
+        if options.setdefault("robot", self.robot) != self.robot:
+            raise ValueError(
+                f"{type(self).__name__} simulates the {self.robot} robot, got robot={options['robot']!r}; "
+                "make Zerith1-v0 or Go2Like-v0 for the robot you want"
+            )
         self.options = ZerithOptions.from_kwargs(options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             modes = ", ".join(self.metadata["render_modes"])
             raise ValueError(f"unknown render_mode {render_mode!r}; valid values: None, {modes}")
-        self.observation_space = observation_space(self.options.obs_mode)
+        self.reward_names = self.options.task.reward_names
+        self.observation_space = observation_space(self.options.obs_mode, self.options.task)
         self.action_space = ACTION_SPACE
         self.obs_mode = self.options.obs_mode
         self.render_mode = render_mode
@@ -104,7 +111,7 @@ class Zerith1Env(gym.Env):
         sim = self.robots.sim
         self.model, self.data, self.nominal = sim.models[0], sim.datas[0], sim.nominal
         self._needs_reset = True
-        self._episode_terms = np.zeros(len(REWARD_NAMES))
+        self._episode_terms = np.zeros(len(self.reward_names))
         self.width, self.height = width, height
         self._renderer = None
 
@@ -124,14 +131,16 @@ class Zerith1Env(gym.Env):
 
     def step(self, action):
         if self._needs_reset:
-            raise RuntimeError("Zerith1Env.step() called before reset() or after the episode ended")
-        step = self.robots.step(check_actions(action, (robot.NUM_JOINTS,))[None], autoreset=False)
+            raise RuntimeError(
+                f"{type(self).__name__}.step() called before reset() or after the episode ended"
+            )
+        step = self.robots.step(check_actions(action, self.action_space.shape)[None], autoreset=False)
         out = step.out
         self._episode_terms += out.terms[0]
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
         info = dict(step_infos(step)[0])
         if terminated or truncated:
-            info["episode_terms"] = dict(zip(REWARD_NAMES, self._episode_terms.tolist(), strict=True))
+            info["episode_terms"] = dict(zip(self.reward_names, self._episode_terms.tolist(), strict=True))
             self._needs_reset = True
         if self.render_mode == "human":
             self.render()

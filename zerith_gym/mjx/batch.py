@@ -190,6 +190,8 @@ class MjxBatch:
             lags=start.lags.astype(jnp.int32),
             policy_obs=policy,
             critic_obs=critic,
+            feet_air_time=jnp.zeros((n, len(robot.FOOT_BODIES)), _real()),
+            last_contact=jnp.zeros((n, len(robot.FOOT_BODIES)), bool),
         )
         return MjxState(data=data, fields=fields, key=key, task=task)
 
