@@ -7,6 +7,8 @@ its own distorted mean) is zero only for a point mass, so it shrinks the fitted 
 coefficient grow; the ``"target"`` reading (the predicted mean against the target atoms' mean) does not.
 
     python benchmarks/bench_expectation_loss.py   # table: reading, beta, coef -> fitted std / true std
+
+The fit is `sb3_huri.experiments.expectation_fit`.
 """
 
 from __future__ import annotations
@@ -15,51 +17,11 @@ import argparse
 
 import torch as th
 
-from sb3_huri.common.distortion import wang_weights
-from sb3_huri.common.energy import energy_distance
-from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
-
-
-def fit_known_distribution(
-    reading: str,
-    beta: float,
-    coef: float,
-    *,
-    mean: float = 2.0,
-    std: float = 1.5,
-    n_quantiles: int = 64,
-    batch: int = 64,
-    steps: int = 2000,
-    seed: int = 0,
-) -> tuple[float, float]:
-    """Fit ``n_quantiles`` free atoms to samples of ``N(mean, std^2)``; returns the fitted (mean, std).
-
-    Each step draws ``batch`` states' target atoms (``n_quantiles`` samples each), as a critic sees one
-    sampled return distribution per state; all states share the prediction.
-    """
-    generator = th.Generator().manual_seed(seed)
-    atoms = th.zeros(n_quantiles, requires_grad=True)
-    optimizer = th.optim.Adam([atoms], lr=0.02)
-    weights = wang_weights(th.full((batch,), beta), n_quantiles)
-    for step in range(steps):
-        if step == steps // 2:  # a smaller step for the second half, for a precise end point
-            for group in optimizer.param_groups:
-                group["lr"] = 0.005
-        targets = mean + std * th.randn(batch, n_quantiles, generator=generator)
-        predicted = th.sort(atoms.expand(batch, -1), dim=-1).values
-        loss = energy_distance(predicted, targets).mean()
-        loss = loss + coef * expectation_loss(predicted, targets, weights, reading)
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-    fitted = atoms.detach()
-    # The atoms of N(mean, std^2) at levels (i + 0.5) / N have a std a little below std: compare like to like.
-    levels = (th.arange(n_quantiles) + 0.5) / n_quantiles
-    ideal_std = float((std * th.special.ndtri(levels)).std(unbiased=False))
-    return float(fitted.mean()), float(fitted.std(unbiased=False)) / ideal_std * std
+from sb3_huri.experiments.expectation_fit import KNOWN_MEAN, KNOWN_STD, spread_table
 
 
 def main() -> None:
+    """Parse the command line and print the fitted spread per reading, beta and coefficient."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -68,20 +30,12 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
     th.set_num_threads(1)
-    mean, std = 2.0, 1.5
     print(
-        f"known distribution N({mean}, {std}^2): fitted std / true std and fitted mean, "
+        f"known distribution N({KNOWN_MEAN}, {KNOWN_STD}^2): fitted std / true std and fitted mean, "
         f"averaged over {args.seeds} seeds"
     )
-    print("| reading | beta | coef | fitted std / true std | fitted mean |")
-    print("|---|---|---|---|---|")
-    for reading in EXPECTATION_LOSSES:
-        for beta in args.betas:
-            for coef in args.coefs:
-                fits = [fit_known_distribution(reading, beta, coef, seed=seed) for seed in range(args.seeds)]
-                fitted_mean = sum(f[0] for f in fits) / len(fits)
-                ratio = sum(f[1] for f in fits) / len(fits) / std
-                print(f"| {reading} | {beta:g} | {coef:g} | {ratio:.3f} | {fitted_mean:.3f} |")
+    for line in spread_table(args.betas, args.coefs, args.seeds):
+        print(line, flush=True)
 
 
 if __name__ == "__main__":

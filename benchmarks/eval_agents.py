@@ -20,24 +20,23 @@ Columns:
 - `alt`: share of consecutive steps made by alternate feet, not together (1 = the feet take turns);
 - `1-supp`: share of the time on exactly one foot.
 
-The evaluation itself is `sb3_huri.experiments.evaluation` (also used by `python -m sb3_huri.experiments`).
+The evaluation itself is `sb3_huri.experiments.evaluation` (also used by `python -m sb3_huri.experiments`);
+`sb3_huri.experiments.agents.evaluate_agents` runs it over agents and cases.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import torch as th
 
-from sb3_huri.experiments.evaluation import evaluate, parse_case, wilson_interval
-from sb3_huri.experiments.evaluation import gait_measures as gait_measures  # the gait's reading, for scripts
-from sb3_huri.zoo import load_run
+from sb3_huri.experiments.agents import evaluate_agents
+from sb3_huri.experiments.robustness import ENV_ID
 from zerith_gym.scenarios import SCENARIOS
 
-ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = (
     ROOT / "trained_agents" / "huri" / f"{ENV_ID}_1",
@@ -51,24 +50,8 @@ DEFAULT_CASES = (
 )
 
 
-@dataclass
-class CaseResult:
-    agent: str
-    case: str
-    episodes: int
-    survive: float
-    low: float
-    high: float
-    vx_err: float
-    vx: float
-    lin_err: float
-    yaw_err: float
-    steps_per_s: float
-    alternation: float
-    single_support: float
-
-
 def main() -> None:
+    """Parse the command line, evaluate every agent on every case, and write the JSON file if asked."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -84,26 +67,13 @@ def main() -> None:
     parser.add_argument("--ls-iterations", type=int, default=None, help="mjx: line-search iterations")
     args = parser.parse_args()
     th.set_num_threads(1)
-    cases = [(case, *parse_case(case)) for case in args.cases]
     backend: dict[str, object] = {"backend": args.backend}
     if args.backend == "mjx":
         backend |= {"solver_iterations": args.solver_iterations, "ls_iterations": args.ls_iterations}
-
-    results: list[CaseResult] = []
-    columns = ("survive", "low", "high", "vx_err", "vx", "lin_err", "yaw_err", "steps/s", "alt", "1-supp")
-    print(f"{'agent':<28} {'case':<22} " + " ".join(f"{c:>7}" for c in columns))
-    for folder in args.agents:
-        model, normalizer = load_run(folder, ENV_ID)
-        agent = f"{folder.parent.name}/{folder.name}"
-        for case, scenario, command in cases:
-            metrics = evaluate(
-                model, normalizer, scenario, command, args.episodes, args.seed, backend_options=backend
-            )
-            low, high = wilson_interval(metrics["survive"], args.episodes)
-            result = CaseResult(agent, case, args.episodes, low=low, high=high, **metrics)
-            results.append(result)
-            values = [v for k, v in asdict(result).items() if k not in ("agent", "case", "episodes")]
-            print(f"{agent:<28} {case:<22} " + " ".join(f"{v:>7.3f}" for v in values), flush=True)
+    try:
+        results = evaluate_agents(args.agents, args.cases, args.episodes, args.seed, backend)
+    except ValueError as error:
+        parser.error(str(error))
     if args.json is not None:
         args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
 

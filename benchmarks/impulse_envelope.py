@@ -22,122 +22,27 @@ before the next one: the per-push survival, and the episode survival it compound
     python benchmarks/impulse_envelope.py runs/huri/Zerith1-v0_1
     python benchmarks/impulse_envelope.py runs/huri/Zerith1-v0_1 --stand --forces 25 50 100
     python benchmarks/impulse_envelope.py runs/huri/Zerith1-v0_1 --table1 --robots 100
+
+The work is done by `sb3_huri.experiments.impulses`.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
-from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import torch as th
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
+from sb3_huri.experiments.evaluation import HoldStance
+from sb3_huri.experiments.impulses import PUSH_STEPS, print_envelope, print_table1
+from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.zoo import load_run
-from zerith_gym.disturbances import FORCE_TARGETS, ForceSchedule
-from zerith_gym.gait import GAIT_PERIOD
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.robot import CONTROL_DT, TOTAL_MASS
-from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND, Scenario
-from zerith_gym.task import EPISODE_STEPS
-
-DIRECTIONS = {
-    "from behind": 0.0,
-    "from the front": math.pi,
-    "from the right": math.pi / 2,
-    "from the left": -math.pi / 2,
-}
-"""World-frame direction of the force (rad from +x towards +y) for each side the push comes from."""
-PUSH_STEP = 100
-"""The earliest push comes at 2 s, as Table 1's first impulse does."""
-PUSH_STEPS = 5
-"""It lasts 0.1 s, as Table 1's impulses do."""
-
-
-def push(target: str, force: float, direction: float, step: int, test_ranges: bool) -> Scenario:
-    """Table 1's sudden scenario on `target`, reduced to one push of `force` N per body from `direction`
-    at control step `step`."""
-    scenario = SCENARIOS[f"sudden-{target}"]
-    schedule = ForceSchedule(
-        target,
-        (force, force),
-        period_steps=10_000,
-        duration_steps=PUSH_STEPS,
-        start_step=step,
-        direction=direction,
-    )
-    ranges = scenario.randomization if test_ranges else NOMINAL
-    return replace(scenario, name=f"push-{target}", randomization=ranges, force=schedule)
-
-
-def falls_per_push(
-    model: Any, normalizer: Any | None, scenario: Scenario, robots: int, seed: int
-) -> np.ndarray:
-    """Run `robots` episodes of `scenario` (a sudden one, with its own command) and count, for each push of
-    its schedule, the robots standing when it came and those that fell before the next: array (pushes, 2)."""
-    schedule = scenario.force
-    result = evaluate(model, normalizer, scenario, None, robots, seed, workers=0, per_robot=True)
-    fall_step = np.nan_to_num(result["fall_step"], nan=EPISODE_STEPS)
-    starts = np.arange(schedule.start_step, EPISODE_STEPS, schedule.period_steps)
-    ends = np.append(starts[1:], EPISODE_STEPS)
-    pairs = zip(starts, ends, strict=True)
-    return np.array([[(fall_step >= a).sum(), ((fall_step >= a) & (fall_step < b)).sum()] for a, b in pairs])
-
-
-def print_table1(model: Any, normalizer: Any | None, robots: int, seed: int) -> None:
-    """Per-push survival in each sudden Table-1 case, and the episode survival it compounds to."""
-    print(f"Table 1's sudden cases, {robots} episodes each, seeds {seed}+")
-    print("| case | fell before push 1 | standing / fell at each push | per push | compounded | survived |")
-    print("|---|---|---|---|---|---|")
-    for case in (c for c in TABLE1_SCENARIOS if c.startswith("sudden")):
-        counts = falls_per_push(model, normalizer, SCENARIOS[case], robots, seed)
-        standing, fell = counts[:, 0], counts[:, 1]
-        per_push = 1.0 - fell.sum() / max(standing.sum(), 1)
-        pushes = " ".join(f"{a}/{f}" for a, f in counts)
-        survived = (standing[-1] - fell[-1]) / robots
-        compounded = f"^{len(counts)}: {per_push ** len(counts):.2f}"
-        row = (
-            f"| {case} | {robots - standing[0]} | {pushes} | {per_push:.3f} | {compounded} | {survived:.2f} |"
-        )
-        print(row, flush=True)
-
-
-def print_envelope(
-    model: Any, normalizer: Any | None, command: tuple[float, float, float], args: Any
-) -> None:
-    """Survival of one push per target, direction and force, over phases of the gait."""
-    duration = PUSH_STEPS * CONTROL_DT
-    period_steps = GAIT_PERIOD / CONTROL_DT
-    push_steps = [PUSH_STEP + round(k * period_steps / args.phases) for k in range(args.phases)]
-    ranges = "test ranges" if args.test_ranges else "nominal robot"
-    print(
-        f"survival of one {duration:.1f}-s push at control step {push_steps}, command {command}, "
-        f"{args.robots} robot(s) per step, seeds {args.seed}+, {ranges}"
-    )
-    for target in args.targets:
-        bodies = 1 if target == "centroid" else 2
-        impulses = [bodies * force * duration for force in args.forces]
-        pairs = zip(args.forces, impulses, strict=True)
-        header = " | ".join(f"{f:g} N ({j:g} N s, {j / TOTAL_MASS:.2f} m/s)" for f, j in pairs)
-        print(f"\n| {target}: force per body | {header} |")
-        print("|---" * (len(args.forces) + 1) + "|")
-        for side, direction in DIRECTIONS.items():
-            cells = []
-            for force in args.forces:
-                survived = [
-                    evaluate(model, normalizer, push(target, force, direction, step, args.test_ranges),
-                             command, args.robots, args.seed, episode_steps=step + args.after,
-                             workers=0)["survive"]
-                    for step in push_steps
-                ]  # fmt: skip
-                cells.append(f"{np.mean(survived):.2f}")
-            print(f"| {side} | " + " | ".join(cells) + " |", flush=True)
+from zerith_gym.disturbances import FORCE_TARGETS
+from zerith_gym.scenarios import TEST_COMMAND
 
 
 def main() -> None:
+    """Parse and check the command line, then print the push envelope or Table 1's per-push survival."""
     formatter = argparse.RawDescriptionHelpFormatter
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=formatter)
     parser.add_argument("agent", type=Path, help="a run folder in RL Zoo's layout")
@@ -156,14 +61,17 @@ def main() -> None:
     if any(force <= 0 for force in args.forces):
         parser.error(f"--forces must be positive (N per body), got {args.forces}")
     th.set_num_threads(1)
-    model, normalizer = load_run(args.agent, "Zerith1-v0")
+    model, normalizer = load_run(args.agent, ENV_ID)
     command = TEST_COMMAND
     if args.stand:
         model, normalizer, command = HoldStance(), None, (0.0, 0.0, 0.0)
     if args.table1:
         print_table1(model, normalizer, args.robots, args.seed)
     else:
-        print_envelope(model, normalizer, command, args)
+        print_envelope(
+            model, normalizer, command, args.targets, args.forces, args.phases, args.robots, args.after,
+            args.seed, args.test_ranges,
+        )  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -13,66 +13,26 @@ a Table-1 share mixes easy robots with hard ones. This runs `--robots` episodes 
     python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3 --cases continuous-feet --robots 200
 
 The friction binned and correlated is the drawn sole material; a sole slides at its mean with the ground's 1
-(`zerith_gym.physics.contact_friction`).
+(`zerith_gym.physics.contact_friction`). The work is done by `sb3_huri.experiments.domain_survival`.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
-from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 import torch as th
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
+from sb3_huri.experiments.agents import check_cases
+from sb3_huri.experiments.domain_survival import FRICTION_BINS, parameter_names, survival_by_domain
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
+from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.zoo import load_run
-from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
-
-ENV_ID = "Zerith1-v0"
-FRICTION_BINS = (0.1, 0.3, 0.55, 1.0, 1.5, 2.0)
-"""Default bin edges for the sole's friction (contact frictions 0.55, 0.65, 0.775, 1, 1.25, 1.5)."""
-
-
-def scalar_parameters(domain: DomainParams) -> dict[str, np.ndarray]:
-    """One value per robot for each parameter: the CoM offset per axis, vectors (per joint or link) as
-    their mean."""
-    values = {}
-    for field in fields(domain):
-        column = np.asarray(getattr(domain, field.name))
-        if field.name == "com_offset":
-            values.update({f"com_offset_{axis}": column[:, i] for i, axis in enumerate("xyz")})
-        else:
-            values[field.name if column.shape[1] == 1 else f"{field.name}_mean"] = column.mean(axis=1)
-    return values
-
-
-def survival_per_bin(values: np.ndarray, survived: np.ndarray, edges: np.ndarray) -> list[tuple[float, int]]:
-    """(survival share, robots) in each bin [edges[k], edges[k+1]) (the last bin closed); NaN if empty."""
-    index = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, len(edges) - 2)
-    cells = []
-    for k in range(len(edges) - 1):
-        inside = index == k
-        cells.append((float(survived[inside].mean()) if inside.any() else float("nan"), int(inside.sum())))
-    return cells
-
-
-def fall_correlations(values: dict[str, np.ndarray], fell: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Point-biserial r of falling with each parameter that varies, and its two-sided p-value."""
-    from scipy import stats
-
-    if fell.all() or not fell.any():
-        return {}
-    out = {}
-    for name, column in values.items():
-        if np.ptp(column) > 0:
-            result = stats.pointbiserialr(fell, column)
-            out[name] = (float(result.statistic), float(result.pvalue))
-    return out
 
 
 def main() -> None:
+    """Parse and check the command line, then print the agent's survival tables."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -86,44 +46,17 @@ def main() -> None:
     edges = np.array(sorted(args.bins))
     if len(edges) < 2:
         parser.error("--bins needs at least two edges")
-    for case in args.cases:
-        try:
-            parse_case(case)
-        except ValueError as error:
-            parser.error(str(error))
-    parameters = list(scalar_parameters(DomainParams.from_vector(np.zeros((1, DOMAIN_VECTOR_SIZE)))))
+    try:
+        check_cases(args.cases)
+    except ValueError as error:
+        parser.error(str(error))
+    parameters = parameter_names()
     if args.parameter not in parameters:
         parser.error(f"unknown --parameter {args.parameter!r}; one of {', '.join(parameters)}")
     th.set_num_threads(1)
     model, normalizer = load_run(args.agent, ENV_ID)
-    bins = [f"[{lo:g}, {hi:g})" for lo, hi in itertools.pairwise(edges)]
-    bins[-1] = bins[-1][:-1] + "]"  # the last bin holds its upper edge
-    survival_rows, correlations = [], {}
-    for case in args.cases:
-        scenario, command = parse_case(case)
-        result = evaluate(
-            model, normalizer, scenario, command, args.robots, args.seed, workers=0, per_robot=True
-        )
-        values = scalar_parameters(result["domain"])
-        survived = np.isnan(result["fall_step"])
-        cells = survival_per_bin(values[args.parameter], survived, edges)
-        survival_rows.append(
-            f"| {case} | {survived.mean():.2f} | " + " | ".join(f"{s:.2f} ({n})" for s, n in cells) + " |"
-        )
-        correlations[case] = fall_correlations(values, ~survived)
-        print(f"{case}: {survived.mean():.2f} survive", flush=True)
-    print(
-        f"\nSurvival per bin of {args.parameter} ({args.robots} robots per case, seeds {args.seed}+; robots):"
-    )
-    print(f"| case | all | {' | '.join(bins)} |\n|" + "---|" * (len(bins) + 2))
-    print("\n".join(survival_rows))
-    names = [n for n in parameters if any(n in c for c in correlations.values())]
-    if names:
-        print("\nCorrelation of falling with each parameter (point-biserial r, p-value):")
-        print(f"| case | {' | '.join(names)} |\n|" + "---|" * (len(names) + 1))
-        for case, found in correlations.items():
-            cells = [f"{found[n][0]:+.2f} (p {found[n][1]:.3f})" if n in found else "-" for n in names]
-            print(f"| {case} | {' | '.join(cells)} |")
+    tables = survival_by_domain(model, normalizer, args.cases, args.robots, args.seed, args.parameter, edges)
+    print(f"\n{tables}")
 
 
 if __name__ == "__main__":

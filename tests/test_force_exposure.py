@@ -1,21 +1,21 @@
-"""benchmarks/force_exposure.py: robot-steps and falls counted by the force the scenario's table names."""
+"""sb3_huri.experiments.force_exposure (`benchmarks/force_exposure.py`): robot-steps and falls counted by
+the force the scenario's table names."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
-from huri_helpers import load_script
 
 import zerith_gym
 from sb3_huri.experiments.evaluation import HoldStance
+from sb3_huri.experiments.force_exposure import exposure
 from zerith_gym.disturbances import TARGET_INDEX
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario
 
 
 def test_robot_steps_are_counted_under_the_force_of_each_robots_table_step() -> None:
-    exposure = load_script("benchmarks/force_exposure.py").exposure
     gentle = replace(scaled_scenario(SCENARIOS["robust"], 0.1), randomization=NOMINAL)  # no robot falls
     env = zerith_gym.make_vec_env(6, seed=1, scenario=gentle, workers=0)
     kinds, steps, falls = exposure(HoldStance(), None, env, 250)

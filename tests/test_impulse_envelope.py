@@ -1,4 +1,5 @@
-"""benchmarks/impulse_envelope.py: one push where and when it is asked for, and Table 1's pushes counted."""
+"""sb3_huri.experiments.impulses (`benchmarks/impulse_envelope.py`): one push where and when it is asked
+for, and Table 1's pushes counted."""
 
 from __future__ import annotations
 
@@ -6,20 +7,14 @@ import math
 from dataclasses import replace
 
 import numpy as np
-import pytest
-from huri_helpers import load_script
 
+from sb3_huri.experiments import impulses as envelope
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS
 
 
-@pytest.fixture(scope="module")
-def envelope():
-    return load_script("benchmarks/impulse_envelope.py")
-
-
-def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(envelope) -> None:
+def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one() -> None:
     stand = HoldStance()
 
     def survive(force: float, after: int, step: int = 100) -> float:
@@ -41,7 +36,7 @@ def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one(env
     )
 
 
-def test_table1_pushes_account_for_every_robot(envelope) -> None:
+def test_table1_pushes_account_for_every_robot() -> None:
     robots = 3
     scenario = replace(SCENARIOS["sudden-hands"], randomization=NOMINAL)
     counts = envelope.falls_per_push(HoldStance(), None, scenario, robots, 0)

@@ -163,7 +163,7 @@ def test_scaling_the_robust_scenario_scales_every_force_of_its_cycle():
 
 def test_robust_gives_the_continuous_feet_force_twice_the_time_of_each_other_force():
     """Per 14-s cycle: two 2-s phases of continuous force on the feet, re-drawn every 0.1 s, and one of each
-    other force (the feet's continuous force topples the agent most; docs/training.md)."""
+    other force (the feet's continuous force topples the agent most; docs/history/training.md)."""
     cycle = SCENARIOS["robust"].force
     table = cycle.table(7 * cycle.phase_steps)
     continuous = table.magnitude[:, 1] == 100.0

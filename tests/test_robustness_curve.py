@@ -1,16 +1,18 @@
-"""benchmarks/robustness_curve.py: which checkpoints of a long run are evaluated, and what is written."""
+"""sb3_huri.experiments.robustness_curves and robustness_plot (`benchmarks/robustness_curve.py`): which
+checkpoints of a long run are evaluated, and what is written and drawn."""
 
 from __future__ import annotations
 
 import csv
 import json
-import sys
 
 import numpy as np
 import pytest
-from huri_helpers import load_script
 
+from sb3_huri.experiments import robustness_curves as curve
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, wilson_interval
 from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
+from sb3_huri.experiments.robustness_plot import FORK_COLORS, fork_own_rows, plot_curve
 from sb3_huri.zoo.curve import append_row
 
 CASE_VALUE = 0.5
@@ -34,7 +36,6 @@ def _fake_run(folder, checkpoint_steps, newest):
 def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoint_is_kept(
     tmp_path, monkeypatch
 ) -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
     run = tmp_path / "run"
     _fake_run(run, checkpoint_steps=[100, 200, 300, 400, 500, 700], newest=800)
     old = [  # written before the `episodes` column: 10 episodes per case
@@ -52,12 +53,7 @@ def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoin
         return {**dict.fromkeys(CASES, CASE_VALUE), "table1_mean": CASE_VALUE, "vx_at_1.0": 1.0}
 
     monkeypatch.setattr(curve, "evaluate_checkpoint", evaluate_checkpoint)
-    docs = tmp_path / "training.md"
-    docs.write_text("before\n<!-- robust-run:begin -->\nold\n<!-- robust-run:end -->\nafter\n")
-    plot = tmp_path / "curve.png"
-    argv = ["robustness_curve.py", str(run), "--every", "300", "--episodes", "50", "--docs", str(docs)]
-    monkeypatch.setattr(sys, "argv", [*argv, "--plot", str(plot)])
-    curve.main()
+    assert curve.update_curve(run, every=300, episodes=50, seed=1000) == [100, 700, 800]
 
     # 100: redone (10 -> 50 episodes); 250: its checkpoint is gone, kept with 10, and still a point of the
     # curve: the next is at least 300 steps after it (700), then the newest model (800).
@@ -72,28 +68,30 @@ def test_rows_of_another_episode_count_are_evaluated_again_where_their_checkpoin
     assert float(rows[250]["sudden-feet"]) == 0.2 and float(rows[700]["sudden-feet"]) == CASE_VALUE
     assert rows[700]["wall_s"] == "7.0"  # the curve's wall time at that step
 
-    text = docs.read_text()
-    assert text.startswith("before\n") and text.endswith("after\n") and "old" not in text
+    summary = curve.write_summary(run)
+    assert summary == run / "robustness.md"  # the run's own record: nothing outside the run is written
+    text = summary.read_text()
+    assert text.startswith("# run: status and robustness curve\n\n800 steps")
     assert "| 250 | 0.00 | 10 |" in text  # steps, wall hours, episodes
-    low, high = curve.wilson_interval(CASE_VALUE, 300)
+    low, high = wilson_interval(CASE_VALUE, 300)
     assert f"[{low:.2f}, {high:.2f}]" in text and "(300 episodes)" in text
+    plot = tmp_path / "curve.png"
+    plot_curve(run, plot)
     assert plot.stat().st_size > 10_000
 
     evaluated.clear()
-    curve.main()  # nothing new: nothing is evaluated again
+    assert curve.update_curve(run, every=300, episodes=50, seed=1000) == []  # nothing new
     assert evaluated == []
 
 
 def test_a_plot_of_a_run_without_evaluations_is_a_clear_error(tmp_path) -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
     run = tmp_path / "run"
     _fake_run(run, checkpoint_steps=[], newest=100)
     with pytest.raises(ValueError, match="no evaluated checkpoint"):
-        curve.plot_curve(run, tmp_path / "curve.png")
+        plot_curve(run, tmp_path / "curve.png")
 
 
 def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
     run, fork = tmp_path / "run", tmp_path / "fork"
     _fake_run(run, checkpoint_steps=[], newest=300)
     _fake_run(fork, checkpoint_steps=[], newest=500)
@@ -112,19 +110,19 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     write_rows(run, {s: row(s, 0.5) for s in (100, 300)})
     write_rows(fork, {s: row(s, 0.5) for s in (100, 300)})
     with pytest.raises(ValueError, match="no evaluated checkpoint beyond"):
-        curve.plot_curve(run, tmp_path / "curve.png", (fork,))
+        plot_curve(run, tmp_path / "curve.png", (fork,))
     write_rows(fork, {**read_rows(fork), 500: row(500, 0.7)})
-    figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,) * 8)
+    figure = plot_curve(run, tmp_path / "curve.png", (fork,) * 8)
     assert (tmp_path / "curve.png").stat().st_size > 10_000
     fork_lines = [line for line in figure.axes[0].get_lines() if line.get_label() == "fork: Table-1 mean"]
     assert len(fork_lines) == 8  # every fork is drawn, however many
-    assert len({line.get_color() for line in fork_lines}) == len(curve.FORK_COLORS)
+    assert len({line.get_color() for line in fork_lines}) == len(FORK_COLORS)
     ppo = tmp_path / "huri-baseline" / "Zerith1-v0_1"
     _fake_run(ppo, checkpoint_steps=[], newest=400)
     with pytest.raises(ValueError, match="no evaluated checkpoint to plot"):
-        curve.plot_curve(run, tmp_path / "curve.png", versus=(ppo,))
+        plot_curve(run, tmp_path / "curve.png", versus=(ppo,))
     write_rows(ppo, {s: row(s, m) for s, m in ((200, 0.1), (400, 0.3))})
-    figure = curve.plot_curve(run, tmp_path / "curve.png", (fork,), versus=(ppo,))
+    figure = plot_curve(run, tmp_path / "curve.png", (fork,), versus=(ppo,))
     (versus_line,) = [
         line
         for line in figure.axes[0].get_lines()
@@ -135,12 +133,11 @@ def test_a_fork_adds_its_own_rows_to_the_plot(tmp_path) -> None:
     assert versus_line.get_linestyle() == "--"
     # both trained on from step 300: the run's row at 500 is its own model, not the fork's
     write_rows(run, {**read_rows(run), 500: row(500, 0.6)})
-    own = curve.fork_own_rows(read_rows(run), read_rows(fork))
+    own = fork_own_rows(read_rows(run), read_rows(fork))
     assert [(step, float(r["table1_mean"])) for step, r in own] == [(300, 0.5), (500, 0.7)]
 
 
 def test_the_trend_is_the_least_squares_slope_with_its_t_interval() -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
     rng = np.random.default_rng(0)
     steps = np.sort(rng.uniform(60e6, 120e6, size=12)).astype(int)
     values = 0.3 + 0.025 * steps / 1e7 + rng.normal(0, 0.04, size=12)
@@ -155,7 +152,6 @@ def test_the_trend_is_the_least_squares_slope_with_its_t_interval() -> None:
 
 
 def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
     run = tmp_path / "run"
     _fake_run(run, checkpoint_steps=[], newest=0)
     for steps, scale in ((100, 0.5), (200, 1.0), (300, 1.0)):
@@ -179,8 +175,7 @@ def test_the_docs_state_the_trend_since_full_scale_only(tmp_path) -> None:
 
 
 def test_the_shipping_check_names_every_criterion_a_row_misses() -> None:
-    curve = load_script("benchmarks/robustness_curve.py")
-    passing = {case: "0.9" for case in curve.TABLE1_SCENARIOS}
+    passing = {case: "0.9" for case in TABLE1_SCENARIOS}
     passing.update({"table1_mean": "0.9", "vx_at_1.0": "0.85", "nominal@1.0": "1.0", "nominal@0.5": "1.0"})
     passing["timesteps"] = "200000000"
     assert curve.unmet_ship_criteria(passing) == []

@@ -1,18 +1,14 @@
-"""benchmarks/survival_by_domain.py and `evaluate(..., per_robot=True)`: which robots fall, by their draws."""
+"""sb3_huri.experiments.domain_survival (`benchmarks/survival_by_domain.py`) and
+`evaluate(..., per_robot=True)`: which robots fall, by their draws."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from huri_helpers import load_script
 
+from sb3_huri.experiments import domain_survival as survival
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
-
-
-@pytest.fixture(scope="module")
-def survival():
-    return load_script("benchmarks/survival_by_domain.py")
 
 
 def test_each_robot_reports_the_parameters_it_drew() -> None:
@@ -34,7 +30,7 @@ def test_each_robot_reports_the_parameters_it_drew() -> None:
     assert "domain" not in evaluate(stand, None, "nominal", None, 1, 0, episode_steps=3, workers=0)
 
 
-def test_bins_count_every_robot_once_and_hold_their_lower_edge(survival) -> None:
+def test_bins_count_every_robot_once_and_hold_their_lower_edge() -> None:
     values = np.array([0.1, 0.3, 0.29, 0.55, 2.0, 1.2])
     survived = np.array([False, True, False, True, True, False])
     cells = survival.survival_per_bin(values, survived, np.array([0.1, 0.3, 0.55, 2.0]))
@@ -44,7 +40,7 @@ def test_bins_count_every_robot_once_and_hold_their_lower_edge(survival) -> None
     assert sum(n for _, n in empty) == len(values)  # outliers go to the nearest end bin
 
 
-def test_correlations_match_numpy_and_skip_what_does_not_vary(survival) -> None:
+def test_correlations_match_numpy_and_skip_what_does_not_vary() -> None:
     rng = np.random.default_rng(0)
     vector = rng.uniform(size=(40, DOMAIN_VECTOR_SIZE))
     vector[:, -1] = 0.02  # the action delay does not vary

@@ -3,7 +3,6 @@ claim (gait measures)."""
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -12,11 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from huri_helpers import load_script
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.experiments import agents
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, gait_measures
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
@@ -83,7 +83,6 @@ def _contacts(left_stance: np.ndarray, right_stance: np.ndarray) -> np.ndarray:
 
 
 def test_gait_measures_tell_walking_from_hopping_limping_and_standing() -> None:
-    gait_measures = load_script("benchmarks/eval_agents.py").gait_measures
     phase = (np.arange(350) % 35) / 35  # ten 0.7-s cycles at 50 Hz
     walk = _contacts(phase < 0.55, (phase + 0.5) % 1 < 0.55)
     rate, alternation, single = gait_measures(walk)
@@ -122,57 +121,43 @@ def test_shipped_agent_survives_the_papers_push_tests(algo: str) -> None:
         assert result["vx"] > 0.6, (scenario, result)
 
 
-def test_eval_agents_writes_each_case_of_each_agent_with_its_survival_interval(tmp_path, monkeypatch) -> None:
-    script = load_script("benchmarks/eval_agents.py")
-    results = tmp_path / "results.json"
-    agents = [str(REPO / "trained_agents" / algo / f"{ENV_ID}_1") for algo in AGENTS]
-    argv = ["eval_agents", "--agents", *agents, "--cases", "nominal@0.5", "sudden-feet", "--episodes", "2"]
-    monkeypatch.setattr(sys, "argv", [*argv, "--json", str(results)])
-    script.main()
-    rows = json.loads(results.read_text())
-    assert [(row["agent"], row["case"]) for row in rows] == [
+def test_evaluate_agents_gives_each_case_of_each_agent_with_its_survival_interval() -> None:
+    folders = [REPO / "trained_agents" / algo / f"{ENV_ID}_1" for algo in AGENTS]
+    rows = agents.evaluate_agents(folders, ["nominal@0.5", "sudden-feet"], episodes=2, seed=1000)
+    assert [(row.agent, row.case) for row in rows] == [
         (f"{algo}/{ENV_ID}_1", case) for algo in AGENTS for case in ("nominal@0.5", "sudden-feet")
     ]
     for row in rows:
-        assert row["episodes"] == 2 and 0.0 <= row["low"] <= row["survive"] <= row["high"] <= 1.0
-        assert row["high"] - row["low"] > 0.3  # two robots know a share only roughly
+        assert row.episodes == 2 and 0.0 <= row.low <= row.survive <= row.high <= 1.0
+        assert row.high - row.low > 0.3  # two robots know a share only roughly
 
 
-def test_compare_agents_pairs_the_robots_and_finds_no_difference_between_an_agent_and_itself(
-    tmp_path, monkeypatch, capsys
-) -> None:
-    script = load_script("benchmarks/compare_agents.py")
-    huri, ppo = (str(REPO / "trained_agents" / algo / f"{ENV_ID}_1") for algo in ("huri", "ppo"))
-    with pytest.raises(SystemExit):  # an unknown case is refused before anything is evaluated
-        monkeypatch.setattr(sys, "argv", ["compare_agents", huri, ppo, "--cases", "sudden-head"])
-        script.main()
-    assert "unknown scenario 'sudden-head'" in capsys.readouterr().err
-    results = tmp_path / "comparison.json"
-    argv = ["compare_agents", huri, huri, "--cases", "sudden-centroid", "--episodes", "3"]
-    monkeypatch.setattr(sys, "argv", [*argv, "--json", str(results)])
-    script.main()
-    (row,) = json.loads(results.read_text())
+def test_compare_agents_pairs_the_robots_and_finds_no_difference_between_an_agent_and_itself() -> None:
+    huri, ppo = (REPO / "trained_agents" / algo / f"{ENV_ID}_1" for algo in ("huri", "ppo"))
+    with pytest.raises(ValueError, match="unknown scenario 'sudden-head'"):  # before anything is evaluated
+        agents.compare_agents(huri, ppo, ["sudden-centroid", "sudden-head"], episodes=3, seed=2000)
+    (row,) = agents.compare_agents(huri, huri, ["sudden-centroid"], episodes=3, seed=2000)
     assert row["case"] == "sudden-centroid" and row["first"] == row["second"]  # deterministic, same robots
     assert row["difference"] == 0.0 and row["only_first"] == row["only_second"] == 0 and row["p_value"] == 1.0
     assert row["low"] < 0.0 < row["high"]
     assert row["vx_first"] == pytest.approx(row["vx_second"])
+    assert "sudden-centroid" in agents.comparison_text([row]).splitlines()[1]
 
 
 def test_compare_agents_averages_table1_per_robot() -> None:
     from scipy import stats
 
-    script = load_script("benchmarks/compare_agents.py")
     rng = np.random.default_rng(3)
-    first = {case: (rng.random(40) < 0.8, 0.8) for case in script.TABLE1_SCENARIOS}
-    second = {case: (rng.random(40) < 0.6, 0.9) for case in script.TABLE1_SCENARIOS}
-    rows = script.compare(first, second)
-    assert [row["case"] for row in rows] == [*script.TABLE1_SCENARIOS, "table1_mean"]
+    first = {case: (rng.random(40) < 0.8, 0.8) for case in TABLE1_SCENARIOS}
+    second = {case: (rng.random(40) < 0.6, 0.9) for case in TABLE1_SCENARIOS}
+    rows = agents.compare(first, second)
+    assert [row["case"] for row in rows] == [*TABLE1_SCENARIOS, "table1_mean"]
     per_robot = np.mean([first[c][0].astype(int) - second[c][0].astype(int) for c in first], axis=0)
     half_width = stats.t.ppf(0.975, 39) * per_robot.std(ddof=1) / np.sqrt(40)
     assert rows[-1]["difference"] == pytest.approx(per_robot.mean())
     assert rows[-1]["high"] - rows[-1]["difference"] == pytest.approx(half_width, rel=1e-4)  # t, 39 dof
     assert rows[-1]["first"] - rows[-1]["second"] == pytest.approx(per_robot.mean())
-    for row, case in zip(rows, script.TABLE1_SCENARIOS, strict=False):
+    for row, case in zip(rows, TABLE1_SCENARIOS, strict=False):
         disagree = first[case][0] != second[case][0]
         assert row["only_first"] + row["only_second"] == disagree.sum()
         expected = stats.binomtest(int((first[case][0] & disagree).sum()), int(disagree.sum())).pvalue

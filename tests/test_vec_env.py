@@ -302,8 +302,8 @@ def test_every_backend_keeps_the_robots_contract():
 
 def test_the_worker_shared_block_holds_every_field_of_the_step_record():
     from zerith_gym.contract import BatchStep
-    from zerith_gym.task import StepOutput
     from zerith_gym.robots import ROBOT_TASKS
+    from zerith_gym.task import StepOutput
     from zerith_gym.workers import step_columns
 
     for task in ROBOT_TASKS.values():
