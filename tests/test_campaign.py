@@ -4,6 +4,7 @@ the whole queue trained by `python -m sb3_huri.experiments campaign` (sb3_huri.e
 from __future__ import annotations
 
 import csv
+import json
 import os
 import subprocess
 import sys
@@ -14,7 +15,8 @@ import yaml
 from huri_helpers import ROOT, state_dicts_equal, tiny_robust_preset
 
 from sb3_huri import HuRiPPO
-from sb3_huri.experiments.campaign import campaign_lock, runnable, status_table
+from sb3_huri.experiments.campaign import campaign_lock, run_entry, runnable, status_table
+from sb3_huri.experiments.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.layout import ExperimentError
 from sb3_huri.experiments.queue import load_queue
 from sb3_huri.experiments.robustness import CASES, read_rows
@@ -179,3 +181,28 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
         and "started huri-s0" not in again.stdout
         and "started ppo-s0" not in again.stdout
     )
+
+
+def test_a_quadruped_entry_trains_go2like_and_is_evaluated_on_its_own_cases(tmp_path):
+    """A `quadruped` entry: the run folder holds `Go2Like-v0` files, no Table-1 robustness rows (they are
+    Zerith-1's), and a final evaluation on the quadruped's cases (plane walking, Table 8's platforms)."""
+    presets = yaml.safe_load((ROOT / "hyperparams" / "huri.yml").read_text())
+    preset = presets["Go2Like-v0"]
+    preset.update(n_envs=4, n_steps=16, n_epochs=1, n_timesteps=128, policy_kwargs="dict(net_arch=[16])")
+    (tmp_path / "go2.yml").write_text(yaml.safe_dump({"Go2Like-v0": preset}))
+    entry = dict(name="go2-s0", protocol="quadruped", method="huri", seed=0, run="go2/Go2Like-v0_1",
+                 conf="go2.yml", steps=64)  # fmt: skip
+    queue = _queue(
+        tmp_path, [entry], robustness_every=32, robustness_episodes=2, eval_episodes=2, episode_steps=10
+    )
+    (loaded,) = load_queue(queue)
+    assert loaded.env_id == "Go2Like-v0" and loaded.state() == "new"
+    assert run_entry(loaded, workers=0) == "done"
+    run = tmp_path / "go2" / "Go2Like-v0_1"
+    assert RunState.read(run, "Go2Like-v0").timesteps == 64 and (run / "Go2Like-v0.zip").is_file()
+    assert not list(read_rows(run))  # no Zerith-1 Table-1 rows for a quadruped
+    record = json.loads((run / "evaluations" / "64.json").read_text())
+    assert set(record["cases"]) == set(QUADRUPED_CASES)
+    assert all(len(case["survived"]) == 2 for case in record["cases"].values())
+    args = yaml.safe_load((run / "Go2Like-v0" / "args.yml").read_text())
+    assert args["env"] == "Go2Like-v0" and args["env_kwargs"]["scenario"] == "quadruped-train"

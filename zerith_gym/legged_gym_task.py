@@ -67,7 +67,7 @@ POLICY_LAYOUT: tuple[tuple[str, int], ...] = (
     ("height_samples", len(HEIGHT_POINTS)),
 )
 CRITIC_LAYOUT: tuple[tuple[str, int], ...] = (
-    ("policy_noiseless", sum(size for _, size in POLICY_LAYOUT)),
+    *POLICY_LAYOUT,  # noiseless
     ("base_height", 1),
     ("foot_contact", len(quad.LEGS)),
     ("foot_contact_force", 3 * len(quad.LEGS)),
@@ -98,9 +98,9 @@ def _critic_affine() -> tuple[np.ndarray, np.ndarray]:
     """Known scales of the critic's entries, as Zerith-1's (`zerith_gym.observations`): (value - offset) *
     scale brings each to about [-1, 1]."""
     offset, scale = np.zeros(CRITIC_SIZE), np.ones(CRITIC_SIZE)
-    critic, policy = layout_slices(CRITIC_LAYOUT), layout_slices(POLICY_LAYOUT)
-    scale[policy["base_angular_velocity"]] = 0.25
-    scale[policy["joint_velocity"]] = 0.05
+    critic = layout_slices(CRITIC_LAYOUT)
+    scale[critic["base_angular_velocity"]] = 0.25
+    scale[critic["joint_velocity"]] = 0.05
     offset[critic["base_height"]] = quad.STANDING_HEIGHT
     scale[critic["base_height"]] = HEIGHT_SCALE
     scale[critic["foot_contact_force"]] = 1.0 / (quad.TOTAL_MASS * 9.81)
@@ -230,5 +230,8 @@ QUADRUPED_TASK = LocomotionTask(
     observe=observations,
     soft_limit=SOFT_LIMIT,
     default_scenario="quadruped-train",
+    critic_layout=CRITIC_LAYOUT,
+    critic_offset=CRITIC_OFFSET,
+    critic_scale=CRITIC_SCALE,
 )
 """The Go2-like quadruped on legged_gym's task."""

@@ -34,6 +34,7 @@ from zerith_gym.arrays import namespace
 from zerith_gym.commands import COMMAND_DRAWS, command_bounds, commands_from_uniforms
 from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due
 from zerith_gym.observations import (
+    CRITIC_LAYOUT,
     CRITIC_OFFSET,
     CRITIC_SCALE,
     CRITIC_SIZE,
@@ -660,12 +661,22 @@ class LocomotionTask:
     """Each reward term's default weight, in the order of the reward columns."""
     judge: Judge
     observe: Observe
+    critic_layout: tuple[tuple[str, int], ...]
+    """The critic observation's (name, size) blocks; every task's has `base_linear_velocity`,
+    `foot_contact` and its domain parameters last (`DomainParams.from_vector`'s layout)."""
+    critic_offset: np.ndarray
+    critic_scale: np.ndarray
+    """The critic observation is `(value - critic_offset) * critic_scale` of each entry's physical value."""
     gait_steps: int = 1
     """Control steps in the gait clock's cycle (1: the task has no clock)."""
     soft_limit: float = JOINT_SOFT_LIMIT
     """Share of each joint's range (centred) beyond which the joint-limit penalty applies."""
     default_scenario: str = "train"
     """The scenario an env of this robot follows unless told otherwise."""
+
+    def critic_in_units(self, critic: np.ndarray) -> np.ndarray:
+        """Critic observations (..., critic_size) back in physical units."""
+        return critic / self.critic_scale + self.critic_offset
 
     @cached_property
     def draws(self) -> Draws:
@@ -711,6 +722,9 @@ HUMANOID_TASK = LocomotionTask(
     reward_weights=DEFAULT_REWARD_WEIGHTS,
     judge=_humanoid_judge,
     observe=_humanoid_observe,
+    critic_layout=CRITIC_LAYOUT,
+    critic_offset=CRITIC_OFFSET,
+    critic_scale=CRITIC_SCALE,
     gait_steps=len(GAIT_TABLE),
 )
 """Zerith-1 walking with the paper's gait clock, observations and Table-4 rewards."""

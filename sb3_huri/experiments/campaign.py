@@ -30,7 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.queue import CampaignEntry, load_queue
+from sb3_huri.experiments.queue import ENV_ID, CampaignEntry, load_queue
 
 DEFAULT_QUEUE = Path("runs") / "campaign.yml"
 CHECKPOINT_FREQ = 1_000_000
@@ -52,17 +52,18 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
     if entry.state() in ("new", "train"):
         defaults = entry.defaults
         request = RunRequest(
-            run=entry.run, preset=read_preset("Zerith1-v0", entry.conf), method=entry.method,
-            seed=entry.seed, until=entry.steps,
+            run=entry.run, preset=read_preset(entry.env_id, entry.conf), method=entry.method,
+            seed=entry.seed, until=entry.steps, env_id=entry.env_id,
         )  # fmt: skip
+        rows = RobustnessSchedule(
+            defaults.robustness_every,
+            defaults.robustness_episodes,
+            defaults.robustness_seed,
+            defaults.episode_steps,
+        )
         options = TrainingOptions(
             checkpoint_freq=CHECKPOINT_FREQ,
-            robustness=RobustnessSchedule(
-                defaults.robustness_every,
-                defaults.robustness_episodes,
-                defaults.robustness_seed,
-                defaults.episode_steps,
-            ),
+            robustness=rows if entry.env_id == ENV_ID else None,  # rows are Zerith-1's Table 1
             max_wall_s=max_wall_s, workers=workers,
         )  # fmt: skip
         train_run(request, options)
@@ -194,10 +195,10 @@ def status_table(queue: Path) -> str:
     training hours left at that speed, and state."""
     import json
 
-    header = f"{'entry':24} {'protocol':8} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
+    header = f"{'entry':24} {'protocol':9} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     for entry in load_queue(queue):
-        state_file = entry.run / "Zerith1-v0" / "state.json"
+        state_file = entry.run / entry.env_id / "state.json"
         hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
         steps, state = entry.trained_steps(), entry.state()
         rate = recent_rate(entry.run) if state == "train" else None
@@ -205,7 +206,7 @@ def status_table(queue: Path) -> str:
             f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
         )
         lines.append(
-            f"{entry.name:24} {entry.protocol:8} {entry.method:14} {entry.seed:4} "
+            f"{entry.name:24} {entry.protocol:9} {entry.method:14} {entry.seed:4} "
             f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
         )
     return "\n".join(lines)

@@ -39,13 +39,12 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
-from zerith_gym.observations import CRITIC_DOMAIN, CRITIC_LAYOUT, critic_in_units, layout_slices
+from zerith_gym.observations import layout_slices
 from zerith_gym.options import ACTION_SPACE
-from zerith_gym.randomization import DomainParams
+from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
 
-_CRITIC = layout_slices(CRITIC_LAYOUT)
 MIN_AIR_STEPS = 3
 """A foot must stay off the ground this many control steps (60 ms) for a step to count."""
 
@@ -211,6 +210,7 @@ def evaluate(
     risk: bool = False,
     per_robot: bool = False,
     backend_options: Mapping[str, Any] | None = None,
+    robot: str = "zerith1",
 ) -> dict[str, Any]:
     """Run one episode on each of ``episodes`` robots and summarize them (see the module docstring).
 
@@ -221,10 +221,11 @@ def evaluate(
     it holds each robot's ``fall_step`` too: (episodes,) the control step at which it fell, NaN where none
     fell; and ``domain``: the ``DomainParams`` it was drawn (physical units), to tell which conditions fell.
     ``backend_options``: more ``make_vec_env`` arguments, e.g. ``{"backend": "mjx", "solver_iterations": 4}``.
+    ``robot``: the robot the model drives ("zerith1", "go2like").
     """
     import zerith_gym
 
-    options: dict[str, Any] = {"scenario": scenario, "command": command}
+    options: dict[str, Any] = {"scenario": scenario, "command": command, "robot": robot}
     if episode_steps is not None:
         options["episode_steps"] = episode_steps
     env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options, **(backend_options or {}))
@@ -238,15 +239,18 @@ def evaluate(
 
 
 def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: bool) -> dict[str, Any]:
+    task = env.options.task  # the robot's critic layout and scales
+    in_units, blocks = task.critic_in_units, layout_slices(task.critic_layout)
     obs = env.reset()
-    domain = critic_in_units(obs["critic"])[:, CRITIC_DOMAIN]
+    domain = in_units(obs["critic"])[:, -DOMAIN_VECTOR_SIZE:]  # every task's critic ends with them
     horizon = env.options.episode_steps
     vx_cmd = np.array([info["command"][0] for info in env.reset_infos])
     alive = np.ones(episodes, dtype=bool)
     fall_step = np.full(episodes, np.nan)
     vx = np.full((horizon, episodes), np.nan)
     lin_err, yaw_err = np.full_like(vx, np.nan), np.full_like(vx, np.nan)
-    contact = np.zeros((horizon, episodes, 2), dtype=bool)
+    feet = blocks["foot_contact"].stop - blocks["foot_contact"].start
+    contact = np.zeros((horizon, episodes, feet), dtype=bool)
     betas, iqrs, atoms, forces = [], [], [], []
     risk_sums = np.zeros(3)  # beta, iqr, robot-steps
     for t in range(horizon):
@@ -258,7 +262,7 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
             betas.append(assessed.risk[0] if first else np.nan)
             iqrs.append(assessed.iqr[0] if first else np.nan)
             atoms.append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
-            force = np.linalg.norm(critic_in_units(obs["critic"][0])[_CRITIC["external_force"]])
+            force = np.linalg.norm(in_units(obs["critic"][0])[blocks["external_force"]])
             forces.append(force if first else np.nan)
         action, _ = model.predict(policy_obs, deterministic=True)
         obs, _, dones, infos = env.step(action)
@@ -268,15 +272,18 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
                 for i, (info, d) in enumerate(zip(infos, dones, strict=True))
             ]
         )
-        vx[t, alive] = critic_in_units(critic[alive])[:, _CRITIC["base_linear_velocity"]][:, 0]
-        contact[t, alive] = critic[alive, _CRITIC["foot_contact"]] > 0.5
+        vx[t, alive] = in_units(critic[alive])[:, blocks["base_linear_velocity"]][:, 0]
+        contact[t, alive] = critic[alive, blocks["foot_contact"]] > 0.5
         lin_err[t, alive] = [infos[i]["lin_vel_error"] for i in np.flatnonzero(alive)]
         yaw_err[t, alive] = [infos[i]["ang_vel_error"] for i in np.flatnonzero(alive)]
         fall_step[alive & np.array([info["fall"] for info in infos])] = t
         alive &= ~dones
         if not alive.any():
             break
-    gait = np.array([gait_measures(contact[~np.isnan(vx[:, i]), i]) for i in range(episodes)])
+    if feet == 2:
+        gait = np.array([gait_measures(contact[~np.isnan(vx[:, i]), i]) for i in range(episodes)])
+    else:  # the step counts are a biped's
+        gait = np.full((episodes, 3), np.nan)
     result: dict[str, Any] = {
         "survive": float(np.mean(np.isnan(fall_step))),
         "vx_err": float(np.nanmean(np.abs(vx - vx_cmd))),

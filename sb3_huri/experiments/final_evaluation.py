@@ -3,9 +3,9 @@ protocol.
 
 An entry of the campaign's queue (``sb3_huri.experiments.queue``) trains a run folder up to ``entry.steps``;
 its evaluation takes the first model the run saved at or after that step (``find_checkpoint``: the run's
-newest model or a kept checkpoint), runs every case of ``EVALUATION_CASES`` on ``eval_episodes`` robots
-(robot i seeded ``eval_seed + i``, the same robots for every agent, so two agents pair robot by robot) and
-writes, in ``<run>/evaluations/``::
+newest model or a kept checkpoint), runs every case of ``evaluation_cases`` (its robot's) on
+``eval_episodes`` robots (robot i seeded ``eval_seed + i``, the same robots for every agent, so two agents
+pair robot by robot) and writes, in ``<run>/evaluations/``::
 
     <steps>.json                   entry, protocol, method, seed, steps, the run's training wall time and
                                    hardware up to that step, the settings, and per case the metrics of
@@ -50,18 +50,29 @@ from zerith_gym.task import EPISODE_STEPS
 EVALUATION_CASES = (*PROTOCOL, "side-impact", "nominal@0.5")
 """The paper's protocol (Table 1, Figs. 4 and 5, the terrain tests), one 200 N push from the side, and
 walking at the training speed (0.5 m/s) on the plane: the robustness curve's two extra cases."""
+QUADRUPED_CASES = ("nominal@1", "nominal@0.5", "platform-0.40", "platform-0.45")
+"""The quadruped's: walking at 1 and 0.5 m/s on the plane, and the paper's Table 8 (stepping down a 0.40
+and a 0.45 m platform at 1 m/s under a centroid force U[0, 100] N redrawn every 2 s, +-1 kg on the trunk)."""
+
+
+def evaluation_cases(entry: CampaignEntry) -> tuple[str, ...]:
+    """The cases of the entry's final evaluation: its robot's."""
+    return QUADRUPED_CASES if entry.protocol == "quadruped" else EVALUATION_CASES
+
+
 PARTIAL = ".partial"
 """Suffix of the evaluation file while cases are still to run."""
 CHECKPOINTS = "checkpoints"
 _CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
 
 
-def saved_models(run: Path) -> dict[int, tuple[Path, Path | None]]:
+def saved_models(run: Path, env_id: str = ENV_ID) -> dict[int, tuple[Path, Path | None]]:
     """Every complete model the run folder holds, by step: model file and normalizer file (None for a run
     without ``VecNormalize``). The run's newest model (step from ``state.json``) and its kept checkpoints;
     a checkpoint without its normalizer in a run that normalizes (a kill between the two files) is left out.
+    `env_id`: the env the run trained on (its files' names).
     """
-    newest_normalizer = run / ENV_ID / "vecnormalize.pkl"
+    newest_normalizer = run / env_id / "vecnormalize.pkl"
     folder = run / CHECKPOINTS
     kept = {
         int(match.group(1)): folder / match.group(0)
@@ -76,17 +87,17 @@ def saved_models(run: Path) -> dict[int, tuple[Path, Path | None]]:
             found[steps] = (model, normalizers[steps])
         elif not normalizes:
             found[steps] = (model, None)
-    state = run / ENV_ID / "state.json"
-    if (run / f"{ENV_ID}.zip").is_file() and state.is_file():
+    state = run / env_id / "state.json"
+    if (run / f"{env_id}.zip").is_file() and state.is_file():
         steps = int(read_json(state, "the run's training state")["timesteps"])
-        found[steps] = (run / f"{ENV_ID}.zip", newest_normalizer if newest_normalizer.is_file() else None)
+        found[steps] = (run / f"{env_id}.zip", newest_normalizer if newest_normalizer.is_file() else None)
     return dict(sorted(found.items()))
 
 
 def find_checkpoint(entry: CampaignEntry) -> tuple[int, Path, Path | None]:
     """The entry's checkpoint: the first saved model at or after ``entry.steps`` (steps, model file,
     normalizer file). ExperimentError saying what the run holds when it has none that far."""
-    found = saved_models(entry.run)
+    found = saved_models(entry.run, entry.env_id)
     later = [steps for steps in found if steps >= entry.steps]
     if not later:
         held = ", ".join(f"{steps:,}" for steps in found) or "none"
@@ -109,9 +120,9 @@ def trace_path(run: Path, steps: int, case: str) -> Path:
     return risk_file(run / EVALUATIONS, case, prefix=f"{steps}-")
 
 
-def hardware_until(run: Path, steps: int) -> list[str]:
+def hardware_until(run: Path, steps: int, env_id: str = ENV_ID) -> list[str]:
     """The machines that trained the run up to ``steps`` (its ``state.json`` sessions), each named once."""
-    path = run / ENV_ID / "state.json"
+    path = run / env_id / "state.json"
     sessions = read_json(path, "the run's training state").get("sessions", []) if path.is_file() else []
     names = [s.get("hardware", "unknown") for s in sessions if s.get("from_timesteps", 0) < steps]
     return list(dict.fromkeys(names))
@@ -160,7 +171,7 @@ def _claimed(target: Path, entry: CampaignEntry) -> bool:
 def evaluate_entry(
     entry: CampaignEntry, workers: int | None = 0, *, episode_steps: int | None = None
 ) -> Path:
-    """Evaluate the entry's checkpoint (``find_checkpoint``) on every case of ``EVALUATION_CASES``; return
+    """Evaluate the entry's checkpoint (``find_checkpoint``) on every case of ``evaluation_cases``; return
     the path of its evaluation file (see the module docstring), at once if it exists already.
 
     ``workers``: processes stepping the robots (``zerith_gym.make_vec_env``; 0: all in this process, None:
@@ -175,7 +186,7 @@ def evaluate_entry(
     record = {
         **header,
         "wall_s": wall_time_at(entry.run, steps),
-        "hardware": hardware_until(entry.run, steps),
+        "hardware": hardware_until(entry.run, steps, entry.env_id),
     }
     record.update(eval_s=0.0, cases={})
     if partial.is_file():
@@ -186,7 +197,7 @@ def evaluate_entry(
         from sb3_huri.zoo import load_checkpoint
 
         model, normalizer = load_checkpoint(model_file, normalizer_file)
-        for case in EVALUATION_CASES:
+        for case in evaluation_cases(entry):
             if case in record["cases"]:
                 continue
             began = time.time()
@@ -210,6 +221,8 @@ def _evaluate_case(
 
     Every method of this package, the scalar-critic PPO baseline included, has ``assess_risk`` (the
     baseline's single atom gives beta 0 and IQR 0): every final agent is traced, as Fig. 5 asks."""
+    from sb3_huri.zoo import robot_of
+
     scenario, command = parse_case(case)
     settings = header["settings"]
     metrics = evaluate(
@@ -223,6 +236,7 @@ def _evaluate_case(
         workers=workers,
         risk=case in RISK_CASES and hasattr(model, "assess_risk"),
         per_robot=True,
+        robot=robot_of(entry.env_id),
     )
     trace = metrics.get("trace")
     if trace is not None:

@@ -14,7 +14,7 @@ own folder. The same run folder may appear in several entries (trained to 150M, 
       episode_steps: 1000        # 20 s evaluation episodes
     entries:
       - name: robust-huri-s0     # unique
-        protocol: robust         # robust, paper (the paper's training ranges) or terrain
+        protocol: robust         # robust, paper (the paper's training ranges), terrain or quadruped
         method: huri             # an RL Zoo algorithm name of sb3_huri.zoo.METHODS
         seed: 0
         run: huri/Zerith1-v0_6
@@ -37,9 +37,12 @@ import yaml
 from sb3_huri.experiments.layout import ExperimentError
 
 ENV_ID = "Zerith1-v0"
-PROTOCOLS = ("robust", "paper", "terrain")
+PROTOCOLS = ("robust", "paper", "terrain", "quadruped")
 """The training protocols: the project's (train at the test magnitudes), the paper's (train at its Table-5
-ranges, test out of distribution) and the paper's terrain training (its appendix A.7)."""
+ranges, test out of distribution), the paper's terrain training (its appendix A.7), and the paper's
+quadruped (its appendix A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms)."""
+PROTOCOL_ENVS = {"quadruped": "Go2Like-v0"}
+"""The env a protocol trains on where it is not ``ENV_ID``."""
 EVALUATIONS = "evaluations"
 
 
@@ -69,9 +72,14 @@ class CampaignEntry:
     steps: int
     defaults: QueueDefaults = field(default_factory=QueueDefaults)
 
+    @property
+    def env_id(self) -> str:
+        """The env the entry trains on (its run folder's file names)."""
+        return PROTOCOL_ENVS.get(self.protocol, ENV_ID)
+
     def trained_steps(self) -> int:
         """Steps the run folder's newest checkpoint holds (0 for a run not started)."""
-        path = self.run / ENV_ID / "state.json"
+        path = self.run / self.env_id / "state.json"
         return int(json.loads(path.read_text())["timesteps"]) if path.is_file() else 0
 
     def evaluation(self) -> Path | None:

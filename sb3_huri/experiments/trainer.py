@@ -87,9 +87,11 @@ class RunRequest:
     """Train until the run holds at least this many steps."""
     curriculum: tuple[int, int] | None = None
     """(steps, stages) of a `RandomizationCurriculum` replacing the preset's."""
+    env_id: str = ENV_ID
+    """The env the run trains on (``Zerith1-v0``, ``Go2Like-v0``): the name of its files in the folder."""
 
     def is_resume(self) -> bool:
-        return (self.run / f"{ENV_ID}.zip").is_file()
+        return (self.run / f"{self.env_id}.zip").is_file()
 
 
 def _resolve_preset(request: RunRequest) -> tuple[dict[str, Any], dict[str, Any], str, int]:
@@ -98,13 +100,15 @@ def _resolve_preset(request: RunRequest) -> tuple[dict[str, Any], dict[str, Any]
 
     if not request.is_resume():
         if request.preset is None:
-            raise ValueError(f"{request.run} holds no {ENV_ID}.zip to resume, and no preset was given")
+            raise ValueError(f"{request.run} holds no {request.env_id}.zip to resume, and no preset given")
         preset = {**request.preset, **request.hyperparams}
         return preset, {}, request.method or "huri", 0 if request.seed is None else request.seed
-    saved_folder = request.run / ENV_ID
+    saved_folder = request.run / request.env_id
     saved = yaml.safe_load((saved_folder / "config.yml").read_text())
     saved_args = yaml.safe_load((saved_folder / "args.yml").read_text())
     method, seed = saved_args["algo"], saved_args["seed"]
+    if saved_args.get("env", request.env_id) != request.env_id:
+        raise ValueError(f"{request.run} is a run on {saved_args['env']}, not {request.env_id}")
     if request.method is not None and request.method != method:
         raise ValueError(f"{request.run} is a run of {method}, not {request.method}")
     if request.seed is not None and request.seed != seed:
@@ -157,11 +161,11 @@ def _build_model(
     if overrides and options.verbose:
         print(f"resuming with changed hyperparameters: {overrides}")
     model = HuRiPPO.load(
-        request.run / f"{ENV_ID}.zip", env, device=options.device, tensorboard_log=options.tensorboard_log,
-        **overrides,
+        request.run / f"{request.env_id}.zip", env, device=options.device,
+        tensorboard_log=options.tensorboard_log, **overrides,
     )  # fmt: skip
-    restore_random_states(request.run)
-    state = RunState.read(request.run)
+    restore_random_states(request.run, request.env_id)
+    state = RunState.read(request.run, request.env_id)
     if state.timesteps != model.num_timesteps:
         print(f"warning: {request.run}: a model of {model.num_timesteps} steps, a state of {state.timesteps}")
     if state.terrain_levels is not None:  # the terrain curriculum goes on from where its robots were
@@ -180,34 +184,38 @@ def train_run(request: RunRequest, options: TrainingOptions | None = None) -> in
     import torch as th
     from stable_baselines3.common.callbacks import CallbackList
 
+    from sb3_huri.zoo import robot_of
     from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState
     from sb3_huri.zoo.presets import preset_env
+    from zerith_gym.robots import locomotion_task
     from zerith_gym.scenarios import get_scenario
 
     options = options or TrainingOptions()
     th.set_num_threads(options.threads)
     preset, overrides, method, seed = _resolve_preset(request)
     resume = request.is_resume()
-    state = RunState.read(request.run) if resume else RunState()
+    state = RunState.read(request.run, request.env_id) if resume else RunState()
     callbacks, curriculum = _callbacks(preset, request, state.curriculum_stage)
     env_kwargs = dict(preset.get("env_kwargs") or {})
-    scenario = get_scenario(env_kwargs.pop("scenario", "train"))
-    normalizer = request.run / ENV_ID / "vecnormalize.pkl" if resume else None
+    robot = robot_of(request.env_id)
+    scenario = get_scenario(env_kwargs.pop("scenario", locomotion_task(robot).default_scenario))
+    normalizer = request.run / request.env_id / "vecnormalize.pkl" if resume else None
     env = preset_env(
         preset, seed=seed, normalizer=normalizer, scenario=scenario, workers=options.workers,
-        physics_threads=options.physics_threads,
+        physics_threads=options.physics_threads, robot=robot,
     )  # fmt: skip
     try:
         model = _build_model(request, preset, overrides, method, seed, env, options)
         run_args = {
             "algo": method,
-            "env": ENV_ID,
+            "env": request.env_id,
             "seed": seed,
             "env_kwargs": {**env_kwargs, "scenario": scenario.name},
         }
         checkpoint = RunCheckpoint(
             request.run, preset, run_args, options.checkpoint_freq, curriculum, options.max_wall_s,
             keep_every=options.keep_every, robustness=options.robustness, verbose=options.verbose,
+            env_id=request.env_id,
         )  # fmt: skip
         handlers = _on_stop_signals(checkpoint.request_stop) if options.stop_on_signals else {}
         try:

@@ -1,7 +1,8 @@
 """HuRiPPO: adaptive risk-aware distributional PPO."""
 
-from sb3_huri.huri.huri import HuRiPPO, RiskAssessment, UnnormalizedRewardWarning
+from sb3_huri.huri.huri import HuRiPPO, UnnormalizedRewardWarning
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
+from sb3_huri.huri.risk import RiskAssessment, RiskModel
 from sb3_huri.huri.variants import VARIANTS, RiskPreset
 
 __all__ = [
@@ -11,6 +12,7 @@ __all__ = [
     "MlpPolicy",
     "MultiInputPolicy",
     "RiskAssessment",
+    "RiskModel",
     "RiskPreset",
     "UnnormalizedRewardWarning",
 ]

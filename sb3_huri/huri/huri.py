@@ -3,7 +3,7 @@
 import warnings
 from collections import defaultdict
 from collections.abc import Callable
-from typing import Any, ClassVar, NamedTuple, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import torch as th
@@ -22,15 +22,13 @@ from stable_baselines3.common.utils import (
 from stable_baselines3.common.vec_env import VecEnv, unwrap_vec_normalize
 from torch.nn import functional as F
 
-from sb3_huri.common.distortion import distortion_weights
 from sb3_huri.common.energy import energy_distance
 from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
 from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
-from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
 from sb3_huri.common.rnd import RNDTrainingCallback
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
-from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, resolve_variant
+from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
 
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
 
@@ -41,41 +39,6 @@ class UnnormalizedRewardWarning(UserWarning):
     """HuRiPPO learns on an env whose rewards are not normalized, so the IQR thresholds may be meaningless."""
 
 
-class RiskAssessment(NamedTuple):
-    """The critic's view of observations (numpy): one row per observation for a batch, unbatched for one."""
-
-    atoms: np.ndarray
-    """Predicted return atoms, sorted, shape ``(batch, n_quantiles)`` (one observation: ``(N,)``)."""
-    value: np.ndarray
-    """Distorted value ``V_beta``, the value the advantages use."""
-    risk: np.ndarray
-    """Risk parameter: Wang's ``beta`` (> 0 risk-averse) or CVaR's ``alpha``."""
-    iqr: np.ndarray
-    """Interquartile range of the atoms."""
-    rnd_error: np.ndarray
-    """RND novelty of the critic input (zero without RND); ``beta_RND = tanh(rnd_error)``."""
-
-
-class _Risk(NamedTuple):
-    """Everything the risk machinery computes for a batch of states, one row per state (torch tensors, or
-    their numpy copies)."""
-
-    atoms: Any
-    """Sorted atoms ``(B, N)``."""
-    value: Any
-    """Distorted value ``V_beta``."""
-    risk: Any
-    """``beta`` (or CVaR's ``alpha``) = ``beta_iqr + beta_rnd`` (clipped to 1 for CVaR)."""
-    weights: Any
-    """Distortion weights ``(B, N)``."""
-    iqr: Any
-    rnd_error: Any
-    beta_iqr: Any
-    """The IQR band's risk level, or the fixed parameter without ``use_iqr``."""
-    beta_rnd: Any
-    """``tanh(rnd_error)`` with ``use_rnd``, else 0."""
-
-
 class HuRiPPO(OnPolicyAlgorithm):
     """Adaptive risk-aware distributional PPO (HuRi, "Humanoid Robots Adaptive Risk-Aware Distributional RL").
 
@@ -84,7 +47,10 @@ class HuRiPPO(OnPolicyAlgorithm):
     atoms (eq. 4) plus an expectation loss (eq. 5). Advantages are GAE on the distorted value
     ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)``, where each state's risk parameter ``beta_s`` is
     ``beta_IQR`` (from the interquartile range of its atoms, Algorithm 1) plus ``tanh`` of its RND novelty.
-    The paper's methods are presets (``variant``); every knob below overrides its preset.
+    The paper's methods are presets (``variant``); every knob below overrides its preset. The risk arguments
+    (``variant`` to ``iqr_risk_levels``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
+    ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
+    names, which it saves.
     Defaults are the paper's Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
 
     :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
@@ -119,12 +85,12 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
         given, else 64 (ignored by ``baseline``, whose critic is scalar)
     :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the variant's
-    :param use_iqr: risk parameter from the IQR band; ``None`` takes the variant's
-    :param use_rnd: add ``tanh(RND error)`` to the risk parameter; ``None`` takes the variant's
-    :param wang_beta: Wang risk parameter when ``use_iqr`` is off (0: neutral, > 0: averse, < 0: seeking)
+    :param use_iqr: risk level from the IQR band; ``None`` takes the variant's
+    :param use_rnd: add ``tanh(RND error)`` to the risk level; ``None`` takes the variant's
+    :param wang_beta: Wang risk level when ``use_iqr`` is off (0: neutral, > 0: averse, < 0: seeking)
     :param cvar_alpha: CVaR level in ``(0, 1]`` when ``use_iqr`` is off (1: neutral)
     :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
-    :param iqr_risk_levels: risk parameter below, within and above the band; ``None`` takes
+    :param iqr_risk_levels: risk level below, within and above the band; ``None`` takes
         ``(-1, 0, 1)`` for Wang and ``(1, 1, 0.5)`` for CVaR (paper A.8)
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
@@ -203,10 +169,16 @@ class HuRiPPO(OnPolicyAlgorithm):
         _init_setup_model: bool = True,
     ):
         policy_kwargs = dict(policy_kwargs or {})
-        self._set_critic_and_risk(
-            variant, distortion, use_iqr, use_rnd, n_quantiles, rnd_kwargs, policy_kwargs,
-            wang_beta, cvar_alpha, iqr_thresholds, iqr_risk_levels,
+        self.variant = variant
+        self._set_risk_model(
+            RiskModel.from_arguments(
+                variant, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
+                distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
+                cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
+            )
         )  # fmt: skip
+        use_rnd = self.risk_model.use_rnd
+        self.rnd_kwargs = _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
         self.sr_lambda = float(sr_lambda)
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
         self.expectation_loss = expectation_loss
@@ -249,39 +221,17 @@ class HuRiPPO(OnPolicyAlgorithm):
         if _init_setup_model:
             self._setup_model()
 
-    def _set_critic_and_risk(
-        self,
-        variant: str,
-        distortion: str | None,
-        use_iqr: bool | None,
-        use_rnd: bool | None,
-        n_quantiles: int | None,
-        rnd_kwargs: dict[str, Any] | None,
-        policy_kwargs: dict[str, Any],
-        wang_beta: float,
-        cvar_alpha: float,
-        iqr_thresholds: tuple[float, float],
-        iqr_risk_levels: tuple[float, float, float] | None,
-    ) -> None:
-        """The method's critic and risk settings: the variant's preset, overridden by the arguments."""
-        preset = resolve_variant(variant, distortion, use_iqr, use_rnd)
-        self.variant, self.distributional = variant, preset.distributional
-        self.distortion, self.use_iqr, self.use_rnd = preset.distortion, preset.use_iqr, preset.use_rnd
-        n_quantiles = _agreeing("n_quantiles", n_quantiles, policy_kwargs, default=64)
-        self.n_quantiles = n_quantiles if self.distributional else 1
-        self.rnd_kwargs = (
-            _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if self.use_rnd else None
-        )
-        self.wang_beta, self.cvar_alpha = float(wang_beta), float(cvar_alpha)
-        self.iqr_thresholds = tuple(float(t) for t in iqr_thresholds)
-        levels = iqr_risk_levels or DEFAULT_IQR_RISK_LEVELS.get(self.distortion, (0.0, 0.0, 0.0))
-        self.iqr_risk_levels = tuple(float(v) for v in levels)
+    def _set_risk_model(self, risk_model: RiskModel) -> None:
+        """Hold `risk_model`, and its settings as attributes of the same names (``distortion``, ``use_rnd``,
+        ...). Those are what ``save`` writes: ``load`` restores them into a model built with the default
+        arguments, and :meth:`_setup_model` rebuilds the risk model from them."""
+        self.risk_model = risk_model
+        self.__dict__.update(risk_model.settings())
 
     def _check_settings(self, **others: Any) -> None:
-        """ValueError naming the first invalid hyperparameter (the attributes set so far and `others`)."""
-        checked = [name for name in _RULES if name not in others and name != "n_quantiles"]
-        if self.distributional:
-            checked.append("n_quantiles")
+        """ValueError naming the first invalid hyperparameter (the attributes set so far and `others`); the
+        risk settings are the risk model's to check."""
+        checked = [name for name in _RULES if name not in others]
         _check_hyperparameters(**others, **{name: getattr(self, name) for name in checked})
 
     def _checked_batch_size(self, batch_size: int | None) -> int | None:
@@ -297,6 +247,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         return _resolve_batch_size(batch_size, self.n_minibatches, self.n_steps * self.env.num_envs)
 
     def _setup_model(self) -> None:
+        # The risk settings may be a loaded model's (or given to `load`): its risk model is rebuilt from them.
+        self._set_risk_model(RiskModel.from_attributes(self))
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
         self._complete_policy_kwargs()
@@ -311,7 +263,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             gamma=self.gamma,
             gae_lambda=self.gae_lambda,
             n_envs=self.n_envs,
-            n_quantiles=self.n_quantiles,
+            n_quantiles=self.risk_model.n_quantiles,
             sr_lambda=self.sr_lambda,
         )
         self.policy = self.policy_class(  # type: ignore[assignment]
@@ -336,14 +288,15 @@ class HuRiPPO(OnPolicyAlgorithm):
         kwargs = dict(self.policy_kwargs)
         if getattr(self, "critic_learning_rate", None) is not None:
             kwargs["critic_param_group"] = True  # the optimizer's second group: the critic's own rate
-        if kwargs.setdefault("n_quantiles", self.n_quantiles) != self.n_quantiles:
+        n_quantiles = self.risk_model.n_quantiles
+        if kwargs.setdefault("n_quantiles", n_quantiles) != n_quantiles:
             raise ValueError(
                 f"policy_kwargs['n_quantiles']={kwargs['n_quantiles']} does not match the critic of "
-                f"variant={self.variant!r} ({self.n_quantiles} atoms)"
+                f"variant={self.variant!r} ({n_quantiles} atoms)"
             )
         rnd_kwargs = kwargs.get("rnd_kwargs")
         kwargs["rnd_kwargs"] = (
-            (rnd_kwargs if rnd_kwargs is not None else self.rnd_kwargs) if self.use_rnd else None
+            (rnd_kwargs if rnd_kwargs is not None else self.rnd_kwargs) if self.risk_model.use_rnd else None
         )
         self.policy_kwargs = kwargs
 
@@ -359,17 +312,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         return super()._init_callback(callback, progress_bar)
 
     def _setup_learn(self, total_timesteps: int, *args: Any, **kwargs: Any) -> tuple[int, BaseCallback]:
-        if (
-            self.distributional
-            and self.use_iqr
-            and self.env is not None
-            and not _normalizes_rewards(self.env)
-        ):
+        if self.risk_model.use_iqr and self.env is not None and not _normalizes_rewards(self.env):
             warnings.warn(
-                f"HuRiPPO's IQR thresholds {self.iqr_thresholds} are in units of normalized returns, but the "
-                "env does not normalize its rewards: wrap it with VecNormalize(env, norm_reward=True) "
-                "(RL Zoo: `normalize: true`), or set iqr_thresholds for your return scale and silence this "
-                "UnnormalizedRewardWarning",
+                f"HuRiPPO's IQR thresholds {self.risk_model.iqr_thresholds} are in units of normalized "
+                "returns, but the env does not normalize its rewards: wrap it with "
+                "VecNormalize(env, norm_reward=True) (RL Zoo: `normalize: true`), or set iqr_thresholds for "
+                "your return scale and silence this UnnormalizedRewardWarning",
                 UnnormalizedRewardWarning,
                 stacklevel=4,
             )
@@ -397,7 +345,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_mirrors"]  # rebuilt by each update from the env
+        # `_mirrors`: rebuilt by each update from the env; `risk_model`: by `_setup_model` from its settings
+        return [*super()._excluded_save_params(), "_mirrors", "risk_model"]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts, variables = super()._get_torch_save_params()
@@ -490,7 +439,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                 critic_inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
             assessed = self._assess(outputs, critic_inputs)
 
-        rollout = _Risk(*(_to_numpy(tensor[:n_rollout]) for tensor in assessed))
+        rollout = RiskReading(*(_to_numpy(tensor[:n_rollout]) for tensor in assessed))
         shape = (buffer.buffer_size, buffer.n_envs)
         buffer.set_risk(
             rollout.weights.reshape(*shape, -1),
@@ -510,8 +459,9 @@ class HuRiPPO(OnPolicyAlgorithm):
             dones=dones,
             last_atoms=_to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
         )
-        if self.distributional:
-            self._record_risk(rollout)
+        if self.risk_model.distributional:
+            for key, value in self.risk_model.rollout_metrics(rollout).items():
+                self.logger.record(key, value)
 
     def assess_risk(self, observation: np.ndarray | dict[str, np.ndarray]) -> RiskAssessment:
         """Return distribution, risk parameter and distorted value the critic gives to observations.
@@ -531,49 +481,14 @@ class HuRiPPO(OnPolicyAlgorithm):
         fields = (assessed.atoms, assessed.value, assessed.risk, assessed.iqr, assessed.rnd_error)
         return RiskAssessment(*(_to_numpy(t) if vectorized else _to_numpy(t)[0] for t in fields))
 
-    def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> _Risk:
-        """Sort the atoms, then per state: IQR, RND novelty, risk parameter, distortion weights, ``V_beta``.
-
-        ``risk = (beta_IQR if use_iqr else the fixed parameter) + (tanh(RND error) if use_rnd)``
-        (paper eqs. 10-11); the scalar critic of ``baseline`` gets weight 1 on its single atom.
-
-        :param outputs: critic outputs, shape ``(B, n_quantiles)``, in any order
-        :param critic_inputs: the critic's flat inputs ``(B, features)`` for RND; ``None`` without RND
-        """
-        atoms = th.sort(outputs, dim=-1).values
-        iqr = interquartile_range(atoms)
+    def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> RiskReading:
+        """The risk model's reading of critic outputs ``(B, n_quantiles)`` (:meth:`RiskModel.assess`), with
+        the RND novelty of the critic's flat inputs ``(B, features)`` (``None`` without RND)."""
         rnd = self.policy.rnd
         rnd_error = (
             rnd.prediction_error(critic_inputs) if rnd is not None and critic_inputs is not None else None
         )
-        if rnd_error is None:
-            rnd_error = th.zeros_like(iqr)
-        zeros = th.zeros_like(iqr)
-        if not self.distributional:
-            return _Risk(atoms, atoms[:, 0], zeros, th.ones_like(atoms), iqr, rnd_error, zeros, zeros)
-        if self.use_iqr:
-            beta_iqr = iqr_risk_level(iqr, self.iqr_thresholds, self.iqr_risk_levels)  # type: ignore[arg-type]
-        else:
-            beta_iqr = th.full_like(iqr, self.wang_beta if self.distortion == "wang" else self.cvar_alpha)
-        beta_rnd = th.tanh(rnd_error) if self.use_rnd else zeros
-        risk = beta_iqr + beta_rnd
-        if self.distortion == "cvar":
-            risk = th.clamp(risk, max=1.0)
-        weights = distortion_weights(self.distortion, risk, self.n_quantiles)
-        return _Risk(atoms, (weights * atoms).sum(dim=-1), risk, weights, iqr, rnd_error, beta_iqr, beta_rnd)
-
-    def _record_risk(self, rollout: _Risk) -> None:
-        t_min, t_max = self.iqr_thresholds
-        iqr = rollout.iqr
-        self.logger.record("rollout/beta_mean", float(rollout.risk.mean()))
-        self.logger.record("rollout/beta_iqr_mean", float(rollout.beta_iqr.mean()))
-        self.logger.record("rollout/iqr_mean", float(iqr.mean()))
-        self.logger.record("rollout/beta_iqr_averse", float((iqr > t_max).mean()))
-        self.logger.record("rollout/beta_iqr_neutral", float(((iqr >= t_min) & (iqr <= t_max)).mean()))
-        self.logger.record("rollout/beta_iqr_seeking", float((iqr < t_min).mean()))
-        if self.use_rnd:
-            self.logger.record("rollout/beta_rnd_mean", float(rollout.beta_rnd.mean()))
-            self.logger.record("rollout/rnd_error", float(rollout.rnd_error.mean()))
+        return self.risk_model.assess(outputs, rnd_error)
 
     def train(self) -> None:
         """One PPO update on the collected rollout (paper eq. 12).
@@ -626,7 +541,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             self.logger.record(f"train/{key}", np.mean(logs[name]))
         if self._mirrors is not None:
             self.logger.record("train/mirror_loss", np.mean(logs["mirror"]))
-        if self.distributional:
+        if self.risk_model.distributional:
             self.logger.record("train/quantile_loss", np.mean(logs["quantile"]))
             self.logger.record("train/expectation_loss", np.mean(logs["expectation"]))
         self.logger.record("train/approx_kl", np.mean(approx_kl_divs))
@@ -728,7 +643,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         ``quantile_coef * energy_distance(atoms, SR(lambda) targets) + expectation_coef * expectation loss``
         (eqs. 4, 5; ``expectation_loss`` picks the reading of eq. 5, see ``sb3_huri.common.expectation``).
         """
-        if not self.distributional:
+        if not self.risk_model.distributional:
             return F.mse_loss(data.returns, outputs.flatten())
         atoms = th.sort(outputs, dim=-1).values
         quantile_loss = energy_distance(atoms, data.target_atoms, presorted=True).mean()  # targets: sorted
@@ -820,11 +735,9 @@ _RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "n_steps": (lambda v: v >= 1, "an integer >= 1"),
     "n_epochs": (lambda v: v >= 1, "an integer >= 1"),
     "n_minibatches": (lambda v: v >= 1, "an integer >= 1"),
-    "n_quantiles": (lambda v: v >= 2, "an integer >= 2"),
     "gamma": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
     "gae_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
     "sr_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
-    "cvar_alpha": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
     "quantile_coef": (lambda v: v >= 0.0, ">= 0"),
     "expectation_coef": (lambda v: v >= 0.0, ">= 0"),
     "mirror_coef": (lambda v: v >= 0.0, ">= 0"),
@@ -834,11 +747,6 @@ _RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
         lambda v: v is None or callable(v) or (isinstance(v, int | float) and v > 0.0),
         "None, a float > 0 or a schedule",
     ),
-    "iqr_thresholds": (
-        lambda v: len(v) == 2 and 0.0 <= v[0] <= v[1],
-        "(t_min, t_max) with 0 <= t_min <= t_max",
-    ),
-    "iqr_risk_levels": (lambda v: len(v) == 3, "3 values (below, within, above)"),
 }
 """Allowed values of the hyperparameters :func:`_check_hyperparameters` checks, and how to say so."""
 

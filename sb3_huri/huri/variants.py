@@ -1,8 +1,10 @@
-"""The paper's methods as presets of HuRiPPO: each one is ``HuRiPPO(..., variant=name)``."""
+"""The paper's methods as presets of HuRiPPO: each one is ``HuRiPPO(..., variant=name)``.
 
-from dataclasses import dataclass, replace
+A preset and HuRiPPO's risk arguments together make its ``RiskModel`` (``sb3_huri.huri.risk``), where they
+are resolved and checked.
+"""
 
-from sb3_huri.common.distortion import DISTORTIONS
+from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
@@ -42,28 +44,3 @@ DEFAULT_IQR_RISK_LEVELS: dict[str, tuple[float, float, float]] = {
     "wang": (-1.0, 0.0, 1.0),
     "cvar": (1.0, 1.0, 0.5),
 }
-
-
-def resolve_variant(
-    variant: str, distortion: str | None = None, use_iqr: bool | None = None, use_rnd: bool | None = None
-) -> RiskPreset:
-    """The preset named ``variant`` with the given settings overriding its own (``None`` keeps the preset's).
-
-    :raises ValueError: for an unknown variant or distortion, or risk settings on the scalar critic of
-        ``baseline``
-    """
-    if variant not in VARIANTS:
-        raise ValueError(f"Unknown variant {variant!r}: expected one of {list(VARIANTS)}")
-    preset = VARIANTS[variant]
-    if not preset.distributional:
-        if distortion is not None or use_iqr or use_rnd:
-            raise ValueError(
-                "distortion, use_iqr and use_rnd need a quantile critic: variant='baseline' has a scalar "
-                "critic "
-                f"(choose one of {[name for name, p in VARIANTS.items() if p.distributional]})"
-            )
-        return preset
-    if distortion is not None and distortion not in DISTORTIONS:
-        raise ValueError(f"Unknown distortion {distortion!r}: expected one of {list(DISTORTIONS)}")
-    overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd)
-    return replace(preset, **{key: value for key, value in overrides.items() if value is not None})

@@ -99,6 +99,19 @@ ROBOT_ENTRY_POINTS = {ZERITH_ENTRY_POINT: "zerith1", "zerith_gym.envs.go2like:Go
 """The entry points of the envs `zerith_gym.make_vec_env` batches, and the robot of each."""
 
 
+def robot_of(env_id: str) -> str:
+    """The robot (`zerith_gym.make_vec_env`'s `robot` option) of a registered Zerith env id; ValueError for an
+    env id that is not one."""
+    import gymnasium as gym
+
+    import zerith_gym  # noqa: F401  (registers the env ids)
+
+    entry_point = gym.spec(env_id).entry_point
+    if entry_point not in ROBOT_ENTRY_POINTS:
+        raise ValueError(f"{env_id} is not a Zerith env (Zerith1-v0, Go2Like-v0)")
+    return ROBOT_ENTRY_POINTS[entry_point]
+
+
 def use_batched_zerith_env() -> None:
     """Let ``rl_zoo3 train`` step Zerith robots with ``zerith_gym.make_vec_env`` (a slice of robots per
     core) instead of RL Zoo's ``DummyVecEnv`` of one env per robot: several times faster, same transitions.

@@ -14,11 +14,7 @@ from sb3_huri.experiments.evaluation import (
     TABLE1_SCENARIOS,
     paired_difference_interval,
 )
-from sb3_huri.experiments.final_evaluation import (
-    EVALUATION_CASES,
-    PARTIAL,
-    hardware_until,
-)
+from sb3_huri.experiments.final_evaluation import PARTIAL, evaluation_cases, hardware_until
 from sb3_huri.experiments.layout import read_json
 from sb3_huri.experiments.queue import EVALUATIONS, PROTOCOLS, CampaignEntry
 from sb3_huri.experiments.report import mean_ci
@@ -114,7 +110,7 @@ def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[in
     hardware of those hours and the entry's state in words."""
     from sb3_huri.zoo.checkpoints import RunState
 
-    run = RunState.read(entry.run)
+    run = RunState.read(entry.run, entry.env_id)
     state = entry.state()
     if evaluated is not None:
         hours, hardware = (
@@ -124,8 +120,8 @@ def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[in
         return run.timesteps, hours, hardware, f"done (evaluated at {evaluated.steps:,})"
     cases = _evaluating(entry)
     if state == "evaluate" and cases is not None:
-        state = f"evaluating ({cases} of {len(EVALUATION_CASES)} cases)"
-    return run.timesteps, run.wall_s / 3600, hardware_until(entry.run, run.timesteps + 1), state
+        state = f"evaluating ({cases} of {len(evaluation_cases(entry))} cases)"
+    return run.timesteps, run.wall_s / 3600, hardware_until(entry.run, run.timesteps + 1, entry.env_id), state
 
 
 def status_section(

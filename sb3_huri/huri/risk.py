@@ -1,0 +1,270 @@
+"""HuRiPPO's risk model: how the critic's return distribution becomes the value PPO's advantages use.
+
+One frozen :class:`RiskModel` holds every setting of it (scalar or quantile critic, distortion, whether the
+IQR band and/or RND novelty set the risk level, the fixed parameters, the IQR band) and is the one place
+they are checked. It computes each state's risk level, the distortion weights and the distorted value,
+and names the rollout statistics the algorithm logs.
+
+The risk level is Wang's ``beta`` for the Wang distortion and CVaR's ``alpha`` for CVaR; the code and the
+logs call it ``risk`` wherever both are meant.
+"""
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch as th
+
+from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
+from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
+from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, VARIANTS
+
+DEFAULT_N_QUANTILES = 64
+"""Critic atoms ``N`` when neither the argument nor ``policy_kwargs`` gives them (paper Table 3)."""
+
+WANG_LOG_KEYS = {
+    "rollout/risk_mean": "rollout/beta_mean",
+    "rollout/risk_iqr_mean": "rollout/beta_iqr_mean",
+    "rollout/risk_rnd_mean": "rollout/beta_rnd_mean",
+    "rollout/iqr_above_share": "rollout/beta_iqr_averse",
+    "rollout/iqr_within_share": "rollout/beta_iqr_neutral",
+    "rollout/iqr_below_share": "rollout/beta_iqr_seeking",
+}
+"""Logged keys -> the names they also have with the Wang distortion, where the risk level is ``beta`` (the
+names of earlier logs, kept so that their curves go on)."""
+
+
+class RiskAssessment(NamedTuple):
+    """The critic's view of observations (numpy): one row per observation for a batch, unbatched for one."""
+
+    atoms: np.ndarray
+    """Predicted return atoms, sorted, shape ``(batch, n_quantiles)`` (one observation: ``(N,)``)."""
+    value: np.ndarray
+    """Distorted value ``V_beta``, the value the advantages use."""
+    risk: np.ndarray
+    """Risk level: Wang's ``beta`` (> 0 risk-averse) or CVaR's ``alpha``."""
+    iqr: np.ndarray
+    """Interquartile range of the atoms."""
+    rnd_error: np.ndarray
+    """RND novelty of the critic input (zero without RND); ``beta_RND = tanh(rnd_error)``."""
+
+
+class RiskReading(NamedTuple):
+    """Everything :meth:`RiskModel.assess` computes for a batch of states, one row per state (torch tensors,
+    or their numpy copies)."""
+
+    atoms: Any
+    """Sorted atoms ``(B, N)``."""
+    value: Any
+    """Distorted value ``V_beta``."""
+    risk: Any
+    """Risk level ``risk_iqr + risk_rnd`` (clipped to 1 for CVaR)."""
+    weights: Any
+    """Distortion weights ``(B, N)``."""
+    iqr: Any
+    rnd_error: Any
+    risk_iqr: Any
+    """The IQR band's risk level, or the fixed parameter without ``use_iqr``."""
+    risk_rnd: Any
+    """``tanh(rnd_error)`` with ``use_rnd``, else 0."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RiskModel:
+    """The settings of HuRiPPO's risk machinery, checked when built (ValueError naming the first bad one).
+
+    Build it with :meth:`from_arguments` (a variant and HuRiPPO's keyword arguments) or with every field.
+    HuRiPPO saves these fields as its attributes of the same names and rebuilds the model from them
+    (:meth:`from_attributes`) when loaded.
+
+    :param distributional: quantile critic; ``False`` is PPO's scalar critic, with no risk at all
+    :param distortion: ``"wang"`` or ``"cvar"`` (unused by a scalar critic)
+    :param use_iqr: the risk level comes from the IQR band of the atoms, else it is the fixed parameter
+    :param use_rnd: ``tanh`` of the RND novelty of the critic state is added to the risk level
+    :param n_quantiles: critic atoms ``N`` (>= 2); 1 for a scalar critic
+    :param wang_beta: the fixed Wang ``beta`` (0: neutral, > 0: averse, < 0: seeking)
+    :param cvar_alpha: the fixed CVaR level in ``(0, 1]`` (1: neutral)
+    :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
+    :param iqr_risk_levels: the risk level below, within and above the band
+    """
+
+    distributional: bool
+    distortion: str
+    use_iqr: bool
+    use_rnd: bool
+    n_quantiles: int
+    wang_beta: float
+    cvar_alpha: float
+    iqr_thresholds: tuple[float, float]
+    iqr_risk_levels: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        """Check every setting; store the numbers as floats and the sequences as tuples (a loaded model's
+        are lists), so that equal settings give equal models."""
+        if self.distortion not in DISTORTIONS:
+            raise ValueError(f"Unknown distortion {self.distortion!r}: expected one of {list(DISTORTIONS)}")
+        normalized = dict(
+            wang_beta=_number("wang_beta", self.wang_beta, math.isfinite, "a finite number"),
+            cvar_alpha=_number("cvar_alpha", self.cvar_alpha, lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            iqr_thresholds=_numbers(
+                "iqr_thresholds", self.iqr_thresholds, 2, lambda v: 0.0 <= v[0] <= v[1],
+                "(t_min, t_max) with 0 <= t_min <= t_max",
+            ),
+            iqr_risk_levels=_numbers(
+                "iqr_risk_levels", self.iqr_risk_levels, 3, lambda v: True, "3 numbers (below, within, above)"
+            ),
+        )  # fmt: skip
+        for name, value in normalized.items():
+            object.__setattr__(self, name, value)
+        if self.distributional:
+            if not (isinstance(self.n_quantiles, int | np.integer) and self.n_quantiles >= 2):
+                raise ValueError(f"n_quantiles must be an integer >= 2, got {self.n_quantiles!r}")
+        elif self.use_iqr or self.use_rnd or self.n_quantiles != 1:
+            raise ValueError(
+                "a scalar critic (distributional=False) takes no risk: use_iqr and use_rnd must be False "
+                f"and n_quantiles 1, got use_iqr={self.use_iqr!r}, use_rnd={self.use_rnd!r}, "
+                f"n_quantiles={self.n_quantiles!r}"
+            )
+        object.__setattr__(self, "n_quantiles", int(self.n_quantiles))
+
+    @classmethod
+    def from_arguments(
+        cls,
+        variant: str = "huri",
+        *,
+        n_quantiles: int | None = None,
+        distortion: str | None = None,
+        use_iqr: bool | None = None,
+        use_rnd: bool | None = None,
+        wang_beta: float = 0.0,
+        cvar_alpha: float = 0.5,
+        iqr_thresholds: tuple[float, float] = (0.3, 0.7),
+        iqr_risk_levels: tuple[float, float, float] | None = None,
+    ) -> "RiskModel":
+        """The model HuRiPPO's keyword arguments describe: the preset ``variant`` (``sb3_huri.huri.variants``)
+        with the given settings overriding its own. ``None`` takes the preset's (``distortion``,
+        ``use_iqr``, ``use_rnd``), 64 atoms (``n_quantiles``; a scalar critic has 1) and the distortion's
+        levels (``iqr_risk_levels``: Wang ``(-1, 0, 1)``, CVaR ``(1, 1, 0.5)``, paper A.8).
+
+        :raises ValueError: for an unknown variant or distortion, risk settings on the scalar critic of
+            ``baseline``, or any setting out of its range
+        """
+        if variant not in VARIANTS:
+            raise ValueError(f"Unknown variant {variant!r}: expected one of {list(VARIANTS)}")
+        preset = VARIANTS[variant]
+        if not preset.distributional and (distortion is not None or use_iqr or use_rnd):
+            raise ValueError(
+                "distortion, use_iqr and use_rnd need a quantile critic: variant='baseline' has a scalar "
+                f"critic (choose one of {[name for name, p in VARIANTS.items() if p.distributional]})"
+            )
+        overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd)
+        preset = replace(preset, **{key: value for key, value in overrides.items() if value is not None})
+        if iqr_risk_levels is None:
+            iqr_risk_levels = DEFAULT_IQR_RISK_LEVELS.get(preset.distortion, (0.0, 0.0, 0.0))
+        if not preset.distributional:
+            n_quantiles = 1
+        return cls(
+            distributional=preset.distributional,
+            distortion=preset.distortion,
+            use_iqr=preset.use_iqr,
+            use_rnd=preset.use_rnd,
+            n_quantiles=DEFAULT_N_QUANTILES if n_quantiles is None else n_quantiles,
+            wang_beta=wang_beta,
+            cvar_alpha=cvar_alpha,
+            iqr_thresholds=iqr_thresholds,
+            iqr_risk_levels=iqr_risk_levels,
+        )
+
+    @classmethod
+    def from_attributes(cls, source: object) -> "RiskModel":
+        """The model whose settings are the attributes of `source` with the fields' names (a HuRiPPO, also
+        one just loaded: its attributes are the saved ones, or the values ``load`` was given)."""
+        return cls(**{field.name: getattr(source, field.name) for field in fields(cls)})
+
+    def settings(self) -> dict[str, Any]:
+        """The fields by name: what HuRiPPO keeps as attributes (and saves)."""
+        return asdict(self)
+
+    @property
+    def fixed_level(self) -> float:
+        """The risk level without ``use_iqr``: ``wang_beta`` or ``cvar_alpha``."""
+        return self.wang_beta if self.distortion == "wang" else self.cvar_alpha
+
+    def assess(self, outputs: th.Tensor, rnd_error: th.Tensor | None) -> RiskReading:
+        """Sort the atoms, then per state: IQR, risk level, distortion weights, distorted value ``V_beta``.
+
+        ``risk = (the IQR band's level if use_iqr else the fixed level) + (tanh(rnd_error) if use_rnd)``
+        (paper eqs. 10-11), clipped to 1 for CVaR; a scalar critic gets weight 1 on its single atom.
+
+        :param outputs: critic outputs, shape ``(B, n_quantiles)``, in any order
+        :param rnd_error: RND novelty per state ``(B,)``; ``None`` without RND (read as zeros)
+        """
+        atoms = th.sort(outputs, dim=-1).values
+        iqr = interquartile_range(atoms)
+        if rnd_error is None:
+            rnd_error = th.zeros_like(iqr)
+        zeros = th.zeros_like(iqr)
+        if not self.distributional:
+            return RiskReading(atoms, atoms[:, 0], zeros, th.ones_like(atoms), iqr, rnd_error, zeros, zeros)
+        if self.use_iqr:
+            risk_iqr = iqr_risk_level(iqr, self.iqr_thresholds, self.iqr_risk_levels)
+        else:
+            risk_iqr = th.full_like(iqr, self.fixed_level)
+        risk_rnd = th.tanh(rnd_error) if self.use_rnd else zeros
+        risk = risk_iqr + risk_rnd
+        if self.distortion == "cvar":
+            risk = th.clamp(risk, max=1.0)
+        weights = distortion_weights(self.distortion, risk, self.n_quantiles)
+        value = (weights * atoms).sum(dim=-1)
+        return RiskReading(atoms, value, risk, weights, iqr, rnd_error, risk_iqr, risk_rnd)
+
+    def rollout_metrics(self, reading: RiskReading) -> dict[str, float]:
+        """A rollout's risk statistics by logger key, from its reading in numpy (docs/huri.md, "Logged").
+
+        The risk level and its parts, the mean IQR, the shares of states above / within / below the IQR
+        band and, with RND, the mean novelty; with the Wang distortion also under the ``beta`` names of
+        earlier logs (``WANG_LOG_KEYS``).
+        """
+        t_min, t_max = self.iqr_thresholds
+        iqr = reading.iqr
+        metrics = {
+            "rollout/risk_mean": float(reading.risk.mean()),
+            "rollout/risk_iqr_mean": float(reading.risk_iqr.mean()),
+            "rollout/iqr_mean": float(iqr.mean()),
+            "rollout/iqr_above_share": float((iqr > t_max).mean()),
+            "rollout/iqr_within_share": float(((iqr >= t_min) & (iqr <= t_max)).mean()),
+            "rollout/iqr_below_share": float((iqr < t_min).mean()),
+        }
+        if self.use_rnd:
+            metrics["rollout/risk_rnd_mean"] = float(reading.risk_rnd.mean())
+            metrics["rollout/rnd_error"] = float(reading.rnd_error.mean())
+        if self.distortion == "wang":
+            metrics.update({WANG_LOG_KEYS[key]: metrics[key] for key in WANG_LOG_KEYS if key in metrics})
+        return metrics
+
+
+def _number(name: str, value: Any, valid: Callable[[float], bool], allowed: str) -> float:
+    """`value` as a float; ValueError naming `name` and what is `allowed` unless it is a number and valid."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if isinstance(value, bool | str) or math.isnan(number) or not valid(number):
+        raise ValueError(f"{name} must be {allowed}, got {value!r}")
+    return number
+
+
+def _numbers(
+    name: str, values: Any, count: int, valid: Callable[[tuple[float, ...]], bool], allowed: str
+) -> tuple[float, ...]:
+    """`values` as a tuple of `count` floats; ValueError naming `name` and what is `allowed` unless valid."""
+    try:
+        numbers = tuple(float(value) for value in values)
+    except (TypeError, ValueError):
+        numbers = ()
+    malformed = isinstance(values, str) or len(numbers) != count or any(map(math.isnan, numbers))
+    if malformed or not valid(numbers):
+        raise ValueError(f"{name} must be {allowed}, got {values!r}")
+    return numbers
