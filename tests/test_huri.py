@@ -13,6 +13,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_huri import VARIANTS, HuRiPolicy, HuRiPPO
+from sb3_huri.huri.risk import WANG_LOG_KEYS
 
 # Most tests learn on raw rewards on purpose (small, exact checks); the warning has its own test.
 pytestmark = pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
@@ -160,6 +161,9 @@ def test_risk_and_loss_keys_are_logged():
         atol=1e-6,
     )
     assert (records["rollout/beta_rnd_mean"] > 0).all() and (records["rollout/beta_rnd_mean"] <= 1).all()
+    # The names true for Wang and CVaR alike hold the same values (the beta names are Wang's only).
+    for neutral, beta in WANG_LOG_KEYS.items():
+        np.testing.assert_array_equal(records[neutral], records[beta])
 
 
 class InitCounter(BaseCallback):

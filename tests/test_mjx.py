@@ -21,7 +21,7 @@ import jax.numpy as jnp  # noqa: E402
 
 import zerith_gym  # noqa: E402
 from zerith_gym import robot  # noqa: E402
-from zerith_gym.observations import CRITIC_LAYOUT, layout_slices  # noqa: E402
+from zerith_gym.observations import CRITIC_LAYOUT, POLICY_LAYOUT, layout_slices  # noqa: E402
 from zerith_gym.physics import NominalModel, build_model, domain_model_fields  # noqa: E402
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams  # noqa: E402
 from zerith_gym.scenarios import SCENARIOS  # noqa: E402
@@ -123,10 +123,23 @@ FORCE_TOLERANCE = dict(atol=0.25, rtol=2e-3)
 """Contact forces: 0.25 N, or 0.2% of the force at a touchdown's impact (hundreds of N)."""
 
 
+VELOCITY_TOLERANCE = {"base_angular_velocity": 0.02, "joint_velocity": 0.05}
+"""Velocities (rad/s) in the policy's observation: they jump at a touchdown, and a contact a sub-step apart
+between the backends shows there. Measured worst cases with the walking agent, on an x86_64 machine whose
+other figures stay within the 5e-3 below: 0.005 (base) and 0.037 (joints) at a touchdown; these are 10%
+and 3% of the training noise on those entries (0.2 and 1.5 rad/s)."""
+
+
 def _assert_backends_agree(obs_cpu, obs_mjx, reward_cpu, reward_mjx):
     forces = np.r_[layout_slices(CRITIC_LAYOUT)["foot_contact_force"]]
     others = np.setdiff1d(np.arange(obs_cpu["critic"].shape[1]), forces)
-    np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=5e-3)
+    blocks = layout_slices(POLICY_LAYOUT)
+    rest = np.ones(obs_cpu["policy"].shape[1], dtype=bool)
+    for name, atol in VELOCITY_TOLERANCE.items():
+        block = blocks[name]
+        np.testing.assert_allclose(obs_mjx["policy"][:, block], obs_cpu["policy"][:, block], atol=atol)
+        rest[block] = False
+    np.testing.assert_allclose(obs_mjx["policy"][:, rest], obs_cpu["policy"][:, rest], atol=5e-3)
     np.testing.assert_allclose(obs_mjx["critic"][:, others], obs_cpu["critic"][:, others], atol=5e-3)
     np.testing.assert_allclose(obs_mjx["critic"][:, forces], obs_cpu["critic"][:, forces], **FORCE_TOLERANCE)
     np.testing.assert_allclose(reward_mjx, reward_cpu, atol=5e-4)

@@ -168,15 +168,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        policy_kwargs = dict(policy_kwargs or {})
-        self.variant = variant
-        self._set_risk_model(
-            RiskModel.from_arguments(
-                variant, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
-                distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
-                cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
-            )
-        )  # fmt: skip
+        self.variant, policy_kwargs = variant, dict(policy_kwargs or {})
+        self._set_risk_model(RiskModel.from_arguments(
+            variant, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
+            distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
+            cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
+        ))  # fmt: skip
         use_rnd = self.risk_model.use_rnd
         self.rnd_kwargs = _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
         self.sr_lambda = float(sr_lambda)
@@ -213,11 +210,8 @@ class HuRiPPO(OnPolicyAlgorithm):
             _init_setup_model=False,
         )
         self.batch_size = self._checked_batch_size(batch_size)
-        self.n_epochs = n_epochs
-        self.clip_range = clip_range
-        self.normalize_advantage = normalize_advantage
-        self.target_kl = target_kl
-
+        self.n_epochs, self.clip_range = n_epochs, clip_range
+        self.normalize_advantage, self.target_kl = normalize_advantage, target_kl
         if _init_setup_model:
             self._setup_model()
 

@@ -75,9 +75,9 @@ class RiskReading(NamedTuple):
 class RiskModel:
     """The settings of HuRiPPO's risk machinery, checked when built (ValueError naming the first bad one).
 
-    Build it with :meth:`from_arguments` (a variant and HuRiPPO's keyword arguments) or with every field.
-    HuRiPPO saves these fields as its attributes of the same names and rebuilds the model from them
-    (:meth:`from_attributes`) when loaded.
+    HuRiPPO builds it from its keyword arguments (:meth:`from_arguments`; ``HuRiPPO(...).risk_model``),
+    saves its fields as attributes of the same names and rebuilds it from them (:meth:`from_attributes`)
+    when loaded. It can also be built from every field.
 
     :param distributional: quantile critic; ``False`` is PPO's scalar critic, with no risk at all
     :param distortion: ``"wang"`` or ``"cvar"`` (unused by a scalar critic)
@@ -105,6 +105,10 @@ class RiskModel:
         are lists), so that equal settings give equal models."""
         if self.distortion not in DISTORTIONS:
             raise ValueError(f"Unknown distortion {self.distortion!r}: expected one of {list(DISTORTIONS)}")
+        for name in ("distributional", "use_iqr", "use_rnd"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, bool(getattr(self, name)))
         normalized = dict(
             wang_beta=_number("wang_beta", self.wang_beta, math.isfinite, "a finite number"),
             cvar_alpha=_number("cvar_alpha", self.cvar_alpha, lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
@@ -132,21 +136,22 @@ class RiskModel:
     @classmethod
     def from_arguments(
         cls,
-        variant: str = "huri",
+        variant: str,
         *,
-        n_quantiles: int | None = None,
-        distortion: str | None = None,
-        use_iqr: bool | None = None,
-        use_rnd: bool | None = None,
-        wang_beta: float = 0.0,
-        cvar_alpha: float = 0.5,
-        iqr_thresholds: tuple[float, float] = (0.3, 0.7),
-        iqr_risk_levels: tuple[float, float, float] | None = None,
+        n_quantiles: int | None,
+        distortion: str | None,
+        use_iqr: bool | None,
+        use_rnd: bool | None,
+        wang_beta: float,
+        cvar_alpha: float,
+        iqr_thresholds: tuple[float, float],
+        iqr_risk_levels: tuple[float, float, float] | None,
     ) -> "RiskModel":
-        """The model HuRiPPO's keyword arguments describe: the preset ``variant`` (``sb3_huri.huri.variants``)
-        with the given settings overriding its own. ``None`` takes the preset's (``distortion``,
-        ``use_iqr``, ``use_rnd``), 64 atoms (``n_quantiles``; a scalar critic has 1) and the distortion's
-        levels (``iqr_risk_levels``: Wang ``(-1, 0, 1)``, CVaR ``(1, 1, 0.5)``, paper A.8).
+        """The model HuRiPPO's risk arguments describe (all of them: their defaults are HuRiPPO's): the
+        preset ``variant`` (``sb3_huri.huri.variants``) with the given settings overriding its own. ``None``
+        takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``), 64 atoms (``n_quantiles``; a scalar
+        critic has 1) and the distortion's levels (``iqr_risk_levels``: Wang ``(-1, 0, 1)``, CVaR
+        ``(1, 1, 0.5)``, paper A.8).
 
         :raises ValueError: for an unknown variant or distortion, risk settings on the scalar critic of
             ``baseline``, or any setting out of its range

@@ -24,7 +24,7 @@ from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
 from zerith_gym.options import ZerithOptions
 from zerith_gym.physics import domain_model_fields
 from zerith_gym.randomization import DomainParams
-from zerith_gym.rewards import resolve_reward_weights
+from zerith_gym.rewards import REWARD_NAMES, resolve_reward_weights
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import (
     GAIT_TABLE,
@@ -150,7 +150,7 @@ class MjxBatch:
         step = jax.device_get(step)  # numpy arrays, in one transfer
         out = step.out._replace(reward=step.out.reward.astype(float), terms=step.out.terms.astype(float))
         as_float = {name: getattr(step, name).astype(float) for name in ("force", "command", "next_command")}
-        return step._replace(out=out, **as_float)
+        return step._replace(out=out, reward_names=REWARD_NAMES, **as_float)
 
     def close(self) -> None:
         """Nothing to stop: the device memory goes with the object."""
@@ -220,8 +220,8 @@ class MjxBatch:
         level = jnp.asarray(self._levels)
         after = new.task  # the next observations and commands (a new episode's where one ended)
         step = BatchStep(
-            out, drawn.force, drawn.command, after.policy_obs, after.critic_obs, after.command, level
-        )
+            out, drawn.force, drawn.command, after.policy_obs, after.critic_obs, after.command, level, ()
+        )  # the reward names are strings, not arrays: `step` puts them back
         return new, step
 
 
