@@ -40,7 +40,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym.workers import available_cores
+from zerith_gym.cpu.workers import available_cores
 
 ENV_ID = "Zerith1-v0"
 

@@ -167,3 +167,23 @@ def test_collisions_limits_and_falls_read_the_contact_sensors_and_joint_ranges()
     # soft limits at 90% of each joint's range, centred
     centre, half = quad.JOINT_RANGE.mean(axis=1), np.diff(quad.JOINT_RANGE, axis=1)[:, 0] / 2
     np.testing.assert_allclose(low, centre - 0.9 * half)
+
+
+def test_training_logs_the_quadrupeds_reward_terms(tmp_path) -> None:
+    """`RewardTermsLogger` reads the env's own terms (legged_gym's), not Zerith-1's."""
+    import csv
+
+    from stable_baselines3.common.logger import configure
+
+    from sb3_huri import HuRiPPO
+    from zerith_gym.callbacks import RewardTermsLogger
+
+    env = make_vec_env(4, seed=0, robot="go2like", episode_steps=10, workers=0)
+    model = HuRiPPO("MultiInputPolicy", env, n_steps=16, batch_size=64, n_epochs=1, seed=0)
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(64, callback=RewardTermsLogger())
+    with open(tmp_path / "progress.csv") as file:
+        row = next(csv.DictReader(file))
+    assert {f"terms/{name}" for name in lg.DEFAULT_REWARD_WEIGHTS} <= set(row)
+    assert float(row["terms/tracking_lin_vel"]) > 0.0 and "terms/alive" not in row
+    env.close()

@@ -217,7 +217,7 @@ def test_reward_terms_of_every_robot_sum_to_its_reward():
 
 
 def test_default_workers_follow_the_cores_and_the_robots(monkeypatch):
-    from zerith_gym import workers
+    from zerith_gym.cpu import workers
 
     monkeypatch.setattr(workers, "available_cores", lambda: 16)
     # one slice per core, the calling process stepping one of them, at least 8 robots a slice
@@ -302,9 +302,9 @@ def test_every_backend_keeps_the_robots_contract():
 
 def test_the_worker_shared_block_holds_every_field_of_the_step_record():
     from zerith_gym.contract import BatchStep
+    from zerith_gym.cpu.workers import step_columns
     from zerith_gym.robots import ROBOT_TASKS
     from zerith_gym.task import StepOutput
-    from zerith_gym.workers import step_columns
 
     for task in ROBOT_TASKS.values():
         out, batch = step_columns(task)

@@ -39,11 +39,10 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
+from zerith_gym.cpu.workers import available_cores
 from zerith_gym.infos import ended_falls
-from zerith_gym.rewards import REWARD_NAMES
 from zerith_gym.scenarios import Scenario, resolve_scenario, scaled_scenario
 from zerith_gym.terrain_levels import LevelRule
-from zerith_gym.workers import available_cores
 
 
 class RewardTermsLogger(BaseCallback):
@@ -57,10 +56,12 @@ class RewardTermsLogger(BaseCallback):
 
     def __init__(self, verbose: int = 0) -> None:
         super().__init__(verbose)
+        self._names: tuple[str, ...] | None = None
+        """The env's reward terms (each robot's task has its own), read from the first ended episode."""
         self._reset()
 
     def _reset(self) -> None:
-        self._episode_terms = np.zeros(len(REWARD_NAMES))
+        self._episode_terms = np.zeros(len(self._names or ()))
         self._episodes = 0
         self._falls = 0
         self._errors = np.zeros(2)
@@ -80,7 +81,11 @@ class RewardTermsLogger(BaseCallback):
         for i in np.flatnonzero(dones):
             info = infos[i]
             if "episode_terms" in info:
-                self._episode_terms += [info["episode_terms"][name] for name in REWARD_NAMES]
+                terms = info["episode_terms"]
+                if self._names is None:
+                    self._names = tuple(terms)
+                    self._episode_terms = np.zeros(len(self._names))
+                self._episode_terms += [terms[name] for name in self._names]
                 self._episodes += 1
                 self._falls += bool(info["fall"])
         return True
@@ -92,7 +97,7 @@ class RewardTermsLogger(BaseCallback):
             self.logger.record("terms/ang_vel_error", float(ang_error))
         if self._episodes:
             self.logger.record("terms/fall_rate", self._falls / self._episodes)
-            for name, total in zip(REWARD_NAMES, self._episode_terms / self._episodes, strict=True):
+            for name, total in zip(self._names or (), self._episode_terms / self._episodes, strict=True):
                 self.logger.record(f"terms/{name}", float(total))
 
 

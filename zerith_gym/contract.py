@@ -1,7 +1,7 @@
 """The robots contract: what `ZerithVecEnv` asks of a simulation backend, and the checks they share.
 
-Three backends implement it: `zerith_gym.batch.ZerithBatch` (every robot in this process),
-`zerith_gym.workers.WorkerPool` (slices of robots in worker processes) and `zerith_gym.mjx.MjxBatch`
+Three backends implement it: `zerith_gym.cpu.batch.ZerithBatch` (every robot in this process),
+`zerith_gym.cpu.workers.WorkerPool` (slices of robots in worker processes) and `zerith_gym.mjx.MjxBatch`
 (MuJoCo MJX on JAX's device). Observations, commands and steps go in and out as numpy arrays with a leading
 robot axis, so the vec env, SB3 and RL Zoo never see which one runs.
 """

@@ -2,7 +2,7 @@
 
 Observations, rewards and randomization are computed with numpy over batches of robots (`ZerithTask`),
 the physics of each robot runs in C (`Simulator`); the robots are split into slices, one per core by
-default, stepped in parallel by this process and worker processes (`zerith_gym.workers`). Robot i seeded
+default, stepped in parallel by this process and worker processes (`zerith_gym.cpu.workers`). Robot i seeded
 with `seed + i` follows exactly the trajectory of a single `Zerith1Env` seeded with `seed + i`, whatever
 the number of workers (tested). Use it wherever SB3 takes a VecEnv:
 
@@ -35,8 +35,9 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from zerith_gym.batch import ZerithBatch
 from zerith_gym.contract import Robots, check_num_robots
+from zerith_gym.cpu.batch import ZerithBatch
+from zerith_gym.cpu.workers import WorkerPool, default_workers
 from zerith_gym.infos import step_infos
 from zerith_gym.options import (
     ACTION_SPACE,
@@ -49,7 +50,6 @@ from zerith_gym.options import (
 from zerith_gym.scenarios import Scenario, resolve_scenario
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule, check_tile
-from zerith_gym.workers import WorkerPool, default_workers
 
 SIMULATION_BACKENDS = ("cpu", "mjx")
 """Where the robots are simulated: "cpu" (MuJoCo, one model per robot, worker processes) or "mjx"
@@ -60,7 +60,7 @@ class ZerithVecEnv(VecEnv):
     """`num_envs` Zerith1-v0 robots stepped together; `options` are those of `ZerithOptions`.
 
     `workers`: worker processes stepping slices of the robots (each with its own task logic and physics,
-    `zerith_gym.workers`) while this process steps the first slice; 0 steps every robot in this process.
+    `zerith_gym.cpu.workers`) while this process steps the first slice; 0 steps every robot in this process.
     The default (None) makes one slice per CPU core with at least 8 robots each, so `cores - 1` workers,
     or 0 where that gives one slice (`default_workers`). `physics_threads`: threads stepping the physics
     of the robots of one process (MuJoCo releases the GIL in `mj_step`; the task logic stays on one).

@@ -20,7 +20,7 @@ from sb3_huri.experiments.layout import (
     validate_grid,
 )
 from sb3_huri.zoo.checkpoints import RunState
-from zerith_gym.workers import available_cores
+from zerith_gym.cpu.workers import available_cores
 
 EXECUTION_BACKENDS = ("local", "ray")
 

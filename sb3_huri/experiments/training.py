@@ -18,9 +18,9 @@ from sb3_huri.experiments.layout import RunStatus, Settings, write_status
 
 def env_workers(cpus: int, n_envs: int) -> int:
     """Worker processes stepping a run's robots when the run has ``cpus`` cores: the env's own choice for
-    that many cores (``zerith_gym.workers.default_workers``: a slice of robots per core, the run's process
+    that many cores (``zerith_gym.cpu.workers.default_workers``: a slice of robots per core, the run's process
     stepping one of them; 0 with one core)."""
-    from zerith_gym.workers import default_workers
+    from zerith_gym.cpu.workers import default_workers
 
     return default_workers(n_envs, cores=cpus)
 

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 from zerith_gym import robot
-from zerith_gym.batch import ZerithBatch
+from zerith_gym.cpu.batch import ZerithBatch
 from zerith_gym.infos import step_infos
 from zerith_gym.options import (
     ACTION_SPACE,

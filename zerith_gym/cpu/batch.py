@@ -12,10 +12,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
+from zerith_gym.cpu.simulator import Simulator
 from zerith_gym.options import ZerithOptions
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario
-from zerith_gym.simulator import Simulator
 from zerith_gym.task import ZerithTask, task_constants
 from zerith_gym.terrain import Terrain
 from zerith_gym.terrain_levels import LevelRule

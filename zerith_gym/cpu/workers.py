@@ -42,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from zerith_gym.batch import ZerithBatch
 from zerith_gym.contract import BatchStep, check_scenario_change
+from zerith_gym.cpu.batch import ZerithBatch
 from zerith_gym.options import ZerithOptions
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import HUMANOID_TASK, LocomotionTask, StepOutput
