@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import signal
 import subprocess
@@ -104,6 +105,19 @@ def test_the_curve_skips_a_torn_row_and_is_cut_back_whole(tmp_path):
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+def test_a_curve_of_fewer_columns_takes_todays_header_and_keeps_its_rows(tmp_path):
+    """A run begun before `terrain_level` existed: its rows stay, NaN in the new column, new rows carry it."""
+    old_columns = CURVE_COLUMNS[:-1]
+    lines = [",".join(old_columns), ",".join(["64", "6.4", "1000", "2.5", *["0.1"] * (len(old_columns) - 4)])]
+    (tmp_path / "curve.csv").write_text("\n".join(lines) + "\n")
+    append_row(tmp_path, {**dict.fromkeys(CURVE_COLUMNS, 0.5), "timesteps": 128, "terrain_level": 3.25})
+    with (tmp_path / "curve.csv").open() as file:
+        assert next(csv.reader(file)) == list(CURVE_COLUMNS)
+    rows = read_curve(tmp_path)
+    assert [r["timesteps"] for r in rows] == [64, 128] and rows[0]["ep_return"] == 2.5
+    assert math.isnan(rows[0]["terrain_level"]) and rows[1]["terrain_level"] == 3.25
+
+
 def test_random_states_come_back_from_a_checkpoint(tmp_path):
     preset = tiny_robust_preset(tmp_path)
     _train("-conf", str(preset), "-f", str(tmp_path), "-n", "64", "--checkpoint-freq", "64")
@@ -172,6 +186,8 @@ def test_a_resumed_terrain_run_starts_its_robots_on_their_saved_levels(tmp_path)
     assert resumed.timesteps == 96 and len(resumed.terrain_levels) == 6
     moved = np.abs(np.subtract(resumed.terrain_levels, planted))
     assert moved.max() <= 1  # at most one episode ended in 8 steps; without the levels they would be 0-1
+    levels = [row["terrain_level"] for row in read_curve(run)]  # the curve's mean level per rollout
+    assert levels[0] == 0.5 and levels[-1] == pytest.approx(np.mean(resumed.terrain_levels))
     _train("--resume", str(run), "--checkpoint-freq", "48")  # the budget is spent: no step, the same levels
     assert RunState.read(run).terrain_levels == resumed.terrain_levels
 

@@ -36,8 +36,8 @@ from sb3_huri.export import (
 )
 from sb3_huri.zoo.runs import load_run
 from zerith_gym import gait, robot
+from zerith_gym.humanoid_task import FALL_HEIGHT, FALL_TILT
 from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE
-from zerith_gym.task import FALL_HEIGHT, FALL_TILT
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"

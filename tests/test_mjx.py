@@ -21,6 +21,7 @@ import jax.numpy as jnp  # noqa: E402
 
 import zerith_gym  # noqa: E402
 from zerith_gym import robot  # noqa: E402
+from zerith_gym.humanoid_task import HUMANOID_TASK, judge_step  # noqa: E402
 from zerith_gym.observations import CRITIC_LAYOUT, POLICY_LAYOUT, layout_slices  # noqa: E402
 from zerith_gym.physics import NominalModel, build_model, domain_model_fields  # noqa: E402
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams  # noqa: E402
@@ -28,7 +29,6 @@ from zerith_gym.scenarios import SCENARIOS  # noqa: E402
 from zerith_gym.task import (  # noqa: E402
     RESET_DRAWS,
     STEP_DRAWS,
-    judge_step,
     reset_values,
     scenario_arrays,
     step_disturbances,
@@ -89,7 +89,7 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     sensordata[:, layout.foot_pos] += np.tile(np.column_stack([spawn, np.zeros(n)]), 2)
     sensordata[:, layout.foot_force] *= 100.0
     constants = task_constants(
-        terrain, np.array([model.joint(j).range for j in robot.JOINT_NAMES]), np.ones(22), 1000
+        terrain, np.array([model.joint(j).range for j in robot.JOINT_NAMES]), np.ones(22), 1000, HUMANOID_TASK
     )
     inputs = (
         rng.integers(0, 35, n),

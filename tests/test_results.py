@@ -331,3 +331,39 @@ def test_an_interrupted_evaluation_continues_with_the_next_case(tiny_run: Path, 
 def test_the_campaign_queue_loads_with_the_synthetic_presets(campaign) -> None:
     root, _ = campaign
     assert [e.state() for e in load_queue(root / "campaign.yml")] == ["done", "done", "done", "train", "new"]
+
+
+def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_path):
+    """Quadruped entries: the Fig. 10 analog from their curves (terrain level included), Table 8 from their
+    evaluations, and the humanoid's sections untouched by them."""
+    go2 = "Go2Like-v0"
+    (tmp_path / "preset.yml").write_text("Go2Like-v0: {}\n")
+    entries = []
+    for method in ("huri", "huri-baseline"):
+        run = tmp_path / "quadruped-rough" / method / f"{go2}_1"
+        (run / go2).mkdir(parents=True)
+        state = {"timesteps": 640, "wall_s": 64.0, "sessions": [{"from_timesteps": 0, "hardware": "m"}]}
+        (run / go2 / "state.json").write_text(json.dumps(state))
+        for step in range(64, 641, 64):
+            row = {
+                "timesteps": step,
+                "wall_s": step / 10,
+                "ep_return": step / 100,
+                "terrain_level": step / 320,
+            }
+            append_row(run, {**dict.fromkeys(CURVE_COLUMNS, math.nan), **row})
+        name = f"quadruped-rough-{'huri' if method == 'huri' else 'ppo'}-s0"
+        entries.append(dict(name=name, protocol="quadruped", method=method, seed=0, conf="preset.yml",
+                            run=f"quadruped-rough/{method}/{go2}_1", steps=640))  # fmt: skip
+    survived = {"platform-0.40": [1, 1, 0, 1], "platform-0.45": [1, 0, 0, 1], "nominal@1": [1] * 4}
+    cases = {case: {"survived": alive, "fall_step": [None] * 4} for case, alive in survived.items()}
+    record = {"entry": entries[0]["name"], "steps": 640, "cases": cases, "settings": {"episodes": 4}}
+    (tmp_path / entries[0]["run"] / "evaluations").mkdir()
+    (tmp_path / entries[0]["run"] / "evaluations" / "640.json").write_text(json.dumps(record))
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
+    page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
+    assert "## 7. The quadruped" in page and "quadruped-rough-ppo-s0" in page
+    assert (tmp_path / "docs" / "results" / "quadruped.png").stat().st_size > 10_000
+    row = next(line for line in page.splitlines() if line.startswith("| [quadruped-rough-huri-s0"))
+    assert "| 0.75 [" in row and "| 0.50 [" in row and "| - |" in row  # 0.40 m, 0.45 m, nominal@0.5 missing
+    assert "PPO 65%, HuRi 93%" in page  # the paper's Table 8 beside

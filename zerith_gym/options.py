@@ -11,10 +11,11 @@ import numpy as np
 from gymnasium import spaces
 
 from zerith_gym import robot
+from zerith_gym.humanoid_task import HUMANOID_TASK
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.robots import locomotion_task
 from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.task import EPISODE_STEPS, HUMANOID_TASK, LocomotionTask
+from zerith_gym.task import EPISODE_STEPS, LocomotionTask
 
 OBS_MODES = ("dict", "policy")
 RESET_OPTIONS = ("command",)

@@ -5,7 +5,7 @@ that external forces act on, the geoms that touch the ground, and its timing. Th
 `simulator.py`) and the task kernel (`task.py`) read these fields instead of one robot's constants, so
 that Zerith-1 (`zerith_gym.robot.ZERITH1`) and the Go2-like quadruped (`zerith_gym.quadruped_robot.GO2LIKE`)
 run the same step. What a robot's task observes and rewards is its `LocomotionTask`
-(`zerith_gym.task.HUMANOID_TASK`, `zerith_gym.legged_gym_task.QUADRUPED_TASK`).
+(`zerith_gym.humanoid_task.HUMANOID_TASK`, `zerith_gym.legged_gym_task.QUADRUPED_TASK`).
 """
 
 from __future__ import annotations

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from zerith_gym.humanoid_task import HUMANOID_TASK
 from zerith_gym.legged_gym_task import QUADRUPED_TASK
-from zerith_gym.task import HUMANOID_TASK, LocomotionTask
+from zerith_gym.task import LocomotionTask
 
 ROBOT_TASKS: dict[str, LocomotionTask] = {"zerith1": HUMANOID_TASK, "go2like": QUADRUPED_TASK}
 """Each robot's name (the envs' `robot` option) and its task."""

@@ -39,7 +39,7 @@ from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, trim_curve
 from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
 from zerith_gym.infos import ended_falls
 
-_TRAIN_COLUMNS = CURVE_COLUMNS[6:]
+_TRAIN_COLUMNS = CURVE_COLUMNS[6:12]
 
 
 def update_figures(model: Any) -> dict[str, float]:
@@ -113,6 +113,12 @@ def start_on_levels(env: VecEnv, levels: list[int]) -> bool:
     return True
 
 
+def _mean_level(env: VecEnv) -> float:
+    """The robots' mean terrain level (tile row) now; NaN off tile terrains."""
+    levels = terrain_levels(env)
+    return float(np.mean(levels)) if levels else np.nan
+
+
 def hardware() -> str:
     """This machine in a few words: processor, cores, torch device."""
     device = th.cuda.get_device_name(0) if th.cuda.is_available() else "no GPU"
@@ -174,6 +180,7 @@ class CurveWriter(BaseCallback):
                 "fall_rate": self._falls / self._episodes if self._episodes else np.nan,
                 "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
                 **figures,
+                "terrain_level": _mean_level(self.training_env),
             },
         )
         self._episodes = self._falls = 0

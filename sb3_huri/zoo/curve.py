@@ -4,7 +4,8 @@ Every training of this package writes the same curve (``sb3_huri.experiments.tra
 ``sb3_huri.zoo.checkpoints.RunCheckpoint``): steps, cumulative
 training wall time, the recent episodes' mean length and return (what SB3 logs as ``ep_len_mean`` and
 ``ep_rew_mean``), the share of the rollout's ended episodes that fell, the curriculum's scale, and the
-previous update's approximate KL, clip fraction, critic explained variance, action noise and learning rates.
+previous update's approximate KL, clip fraction, critic explained variance, action noise and learning rates,
+and on a tile terrain the robots' mean terrain level (the paper's Figures 10 and 11).
 """
 
 from __future__ import annotations
@@ -20,7 +21,10 @@ CURVE_FILE = "curve.csv"
 CURVE_COLUMNS = (
     "timesteps", "wall_s", "ep_len", "ep_return", "fall_rate", "scale",
     "approx_kl", "clip_fraction", "explained_variance", "std", "learning_rate", "critic_learning_rate",
+    "terrain_level",
 )  # fmt: skip
+OPTIONAL_COLUMNS = ("terrain_level",)
+"""Columns later than the first curves: NaN in the rows written before them."""
 
 
 def _cell(value: object) -> object:
@@ -28,10 +32,16 @@ def _cell(value: object) -> object:
 
 
 def append_row(folder: str | os.PathLike, row: Mapping[str, object]) -> None:
-    """Append one rollout's row (keys: ``CURVE_COLUMNS``) to the curve of ``folder`` (the header first)."""
+    """Append one rollout's row (keys: ``CURVE_COLUMNS``) to the curve of ``folder`` (the header first; a
+    curve written with fewer columns gets today's header first, its rows blank in the new columns)."""
     path = Path(folder) / CURVE_FILE
     new = not path.is_file()
     path.parent.mkdir(parents=True, exist_ok=True)
+    if not new:
+        with path.open(newline="") as file:
+            header = next(csv.reader(file), [])
+        if header != list(CURVE_COLUMNS):
+            _rewrite(path, _rows(path))
     with path.open("a", newline="") as file:
         writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
         if new:
@@ -49,7 +59,10 @@ def read_curve(folder: str | os.PathLike) -> list[dict[str, float]]:
     with path.open(newline="") as file:
         for row in csv.DictReader(file):
             try:
-                values = {key: float(row[key]) for key in CURVE_COLUMNS}
+                values = {
+                    key: float(row.get(key) or "nan") if key in OPTIONAL_COLUMNS else float(row[key])
+                    for key in CURVE_COLUMNS
+                }
             except (KeyError, TypeError, ValueError):
                 continue
             if math.isfinite(values["timesteps"]):
@@ -63,15 +76,24 @@ def trim_curve(folder: str | os.PathLike, steps: int) -> None:
     path = Path(folder) / CURVE_FILE
     if not path.is_file():
         return
-    with path.open(newline="") as file:
-        rows = list(csv.DictReader(file))
+    rows = _rows(path)
     kept = [row for row in rows if row.get("timesteps", "").isdigit() and int(row["timesteps"]) <= steps]
     if len(kept) == len(rows):
         return
+    _rewrite(path, kept)
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def _rewrite(path: Path, rows: list[dict[str, str]]) -> None:
+    """Replace the curve with `rows` under today's header, whole (never left torn)."""
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=CURVE_COLUMNS, extrasaction="ignore")
     writer.writeheader()
-    writer.writerows(kept)
+    writer.writerows(rows)
     temporary = path.with_name(f".{path.name}.tmp")
     temporary.write_text(text.getvalue())
     os.replace(temporary, path)

@@ -44,9 +44,10 @@ import numpy as np
 
 from zerith_gym.contract import BatchStep, check_scenario_change
 from zerith_gym.cpu.batch import ZerithBatch
+from zerith_gym.humanoid_task import HUMANOID_TASK
 from zerith_gym.options import ZerithOptions
 from zerith_gym.scenarios import Scenario
-from zerith_gym.task import HUMANOID_TASK, LocomotionTask, StepOutput
+from zerith_gym.task import LocomotionTask, StepOutput
 from zerith_gym.terrain_levels import LevelRule
 
 MIN_ROBOTS_PER_WORKER = 8

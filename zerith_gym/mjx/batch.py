@@ -20,6 +20,7 @@ from mujoco import mjx
 
 from zerith_gym import robot
 from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
+from zerith_gym.humanoid_task import GAIT_TABLE, HUMANOID_TASK, ground, observations
 from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
 from zerith_gym.options import ZerithOptions
 from zerith_gym.physics import domain_model_fields
@@ -27,7 +28,6 @@ from zerith_gym.randomization import DomainParams
 from zerith_gym.rewards import REWARD_NAMES, resolve_reward_weights
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import (
-    GAIT_TABLE,
     RESET_DRAWS,
     STEP_DRAWS,
     ScenarioArrays,
@@ -35,9 +35,7 @@ from zerith_gym.task import (
     TaskState,
     begin_step,
     end_step,
-    ground,
     observation_noise,
-    observations,
     reset_values,
     scenario_arrays,
     task_constants,
@@ -75,6 +73,7 @@ class MjxBatch:
             np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
             resolve_reward_weights(options.reward_weights),
             int(options.episode_steps),
+            HUMANOID_TASK,
         )
         tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots))  # fixed: no curriculum on MJX
         self._spawn, self._levels = tiles.spawn_points(np.arange(num_robots)), tiles.levels
@@ -201,7 +200,7 @@ class MjxBatch:
         n = self.num_robots
         key, draw, restart = jax.random.split(state.key, 3)
         u = jax.random.uniform(draw, (n, STEP_DRAWS))
-        task, drawn, targets = begin_step(state.task, actions, u, sc)
+        task, drawn, targets = begin_step(state.task, actions, u, sc, HUMANOID_TASK)
         data, unstable = jax.vmap(self.physics.control_step)(
             state.fields, state.data, targets, task.lags, drawn.force, drawn.force_target, drawn.kicks
         )

@@ -32,6 +32,7 @@ from sb3_huri.experiments.results.figures import (
     tracking_section,
 )
 from sb3_huri.experiments.results.markdown import link
+from sb3_huri.experiments.results.quadruped import quadruped_section
 from sb3_huri.experiments.results.tables import (
     findings_section,
     pairs_section,
@@ -45,8 +46,9 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
     ``docs/results/``) from the queue at ``queue_path`` and its run folders; return the page's path."""
     queue_path, out = Path(queue_path).resolve(), Path(out).resolve()
     every_entry = load_queue(queue_path)
-    # Zerith-1's comparison; the quadruped's entries show in the status until its own sections exist.
+    # Zerith-1's comparison in sections 2-6; the quadruped's in section 7; every entry in the status.
     entries = [entry for entry in every_entry if entry.env_id == ENV_ID]
+    quadruped = [entry for entry in every_entry if entry.protocol == "quadruped"]
     evaluations = load_evaluations(entries)
     figures = out.with_suffix("")
     figures.mkdir(parents=True, exist_ok=True)
@@ -67,6 +69,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *returns_section(entries, figures, out),
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
+        *quadruped_section(quadruped, load_evaluations(quadruped), figures, out),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")
     return out

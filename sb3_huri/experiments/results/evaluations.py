@@ -80,10 +80,10 @@ class Evaluated:
         return float(self.data["cases"].get(case, {}).get(key, math.nan))
 
 
-def rollout_size(run: Path) -> int:
-    """``n_envs * n_steps`` of the run's preset (``<run>/Zerith1-v0/config.yml``); 0 if it cannot be read,
+def rollout_size(run: Path, env_id: str = ENV_ID) -> int:
+    """``n_envs * n_steps`` of the run's preset (``<run>/<env_id>/config.yml``); 0 if it cannot be read,
     so that only checkpoints at the very same step count as comparable."""
-    path = run / ENV_ID / "config.yml"
+    path = run / env_id / "config.yml"
     try:
         config = yaml.safe_load(path.read_text()) if path.is_file() else None
     except yaml.YAMLError:
@@ -105,7 +105,7 @@ def load_evaluations(entries: Sequence[CampaignEntry]) -> list[Evaluated]:
         data = read_json(path, "a final evaluation")
         if not isinstance(data, dict) or not isinstance(data.get("cases"), dict) or "steps" not in data:
             raise ExperimentError(f"{path} is not a final evaluation (no steps or cases); delete it")
-        found.append(Evaluated(entry, path, data, rollout_size(entry.run)))
+        found.append(Evaluated(entry, path, data, rollout_size(entry.run, entry.env_id)))
     return found
 
 
@@ -188,14 +188,14 @@ def runs_of(entries: Sequence[CampaignEntry]) -> dict[Path, list[CampaignEntry]]
     return runs
 
 
-def smoothed_curve(run: Path, window: int = 50) -> tuple[np.ndarray, np.ndarray]:
-    """The run's training return (``curve.csv``'s ``ep_return``, SB3's mean over the last 100 episodes)
-    against samples, smoothed by a moving average over ``window`` rollouts."""
+def smoothed_curve(run: Path, window: int = 50, column: str = "ep_return") -> tuple[np.ndarray, np.ndarray]:
+    """The run's training return (``curve.csv``'s ``ep_return``, SB3's mean over the last 100 episodes; or
+    another ``column`` of the curve) against samples, a moving average over ``window`` rollouts."""
     from scipy.ndimage import uniform_filter1d
 
-    rows = [row for row in read_curve(run) if math.isfinite(row["ep_return"])]
+    rows = [row for row in read_curve(run) if math.isfinite(row[column])]
     if not rows:
         return np.empty(0), np.empty(0)
     steps = np.array([row["timesteps"] for row in rows])
-    returns = np.array([row["ep_return"] for row in rows])
+    returns = np.array([row[column] for row in rows])
     return steps, uniform_filter1d(returns, size=min(window, len(returns)), mode="nearest")

@@ -1,0 +1,92 @@
+"""The quadruped's section of the results page: the Figure 10 analog (training return and mean terrain level
+against samples) and the Table 8 analog (stepping down platforms under centroid forces), from the campaign's
+``quadruped`` entries (`Go2Like-v0`, docs/go2like.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from sb3_huri.experiments.final_evaluation import QUADRUPED_CASES
+from sb3_huri.experiments.queue import CampaignEntry
+from sb3_huri.experiments.results.evaluations import Evaluated, runs_of, smoothed_curve
+from sb3_huri.experiments.results.markdown import figure_lines, link, share_cell
+from sb3_huri.zoo.curve import read_curve
+
+PAPER_TABLE8 = {
+    "platform-0.40": {"huri-baseline": 65.37, "huri": 92.73},
+    "platform-0.45": {"huri-baseline": 39.01, "huri": 80.55},
+}
+"""The paper's Table 8: success (%) stepping down a platform, PPO (baseline) and HuRi, 5 seeds."""
+
+
+def quadruped_section(
+    entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated], figures: Path, out: Path
+) -> list[str]:
+    """Section 7: the quadruped's runs (Fig. 10 analog) and final evaluations (Table 8 analog)."""
+    entries = [entry for entry in entries if entry.protocol == "quadruped"]
+    if not entries:
+        return []
+    path = figures / "quadruped.png"
+    lines = [
+        "## 7. The quadruped (appendix A.6: Fig. 10 and Table 8 analogs)",
+        "",
+        "`Go2Like-v0` on legged_gym's task (docs/go2like.md). Training return and the robots' mean terrain "
+        "level against samples, a moving average over 50 rollouts; one line per run.",
+        "",
+    ]
+    curves = {run: run_entries[0] for run, run_entries in runs_of(entries).items() if read_curve(run)}
+    if curves:
+        _plot_quadruped(path, curves)
+        lines += figure_lines(path, out)
+    else:
+        lines += ["No quadruped run has a learning curve yet.", "", *figure_lines(path, out, drawn=False)]
+    return [*lines, *_table8(evaluations, out)]
+
+
+def _label(entry: CampaignEntry) -> str:
+    """The run's name on the figure: its entry's name without the seed's suffix."""
+    return entry.name.rsplit("-s", 1)[0]
+
+
+def _plot_quadruped(path: Path, curves: dict[Path, CampaignEntry]) -> None:
+    """Two panels: return and mean terrain level (where the run is on tiles) against samples."""
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(11, 4), layout="constrained")
+    returns, levels = figure.subplots(1, 2)
+    for run, entry in curves.items():
+        style = {"linestyle": "-" if entry.method == "huri" else "--"}
+        steps, values = smoothed_curve(run)
+        line = returns.plot(steps / 1e6, values, label=_label(entry), **style)[0]
+        level_steps, level = smoothed_curve(run, column="terrain_level")
+        if len(level_steps):
+            levels.plot(level_steps / 1e6, level, color=line.get_color(), label=_label(entry), **style)
+    returns.set(xlabel="samples (M)", ylabel="training return (A)")
+    levels.set(xlabel="samples (M)", ylabel="mean terrain level (B)")
+    returns.legend(fontsize="small")
+    figure.savefig(path, dpi=110)
+
+
+def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
+    """Each evaluated quadruped agent's survival per case with its 95% interval, beside the paper's."""
+    shown = [e for e in evaluations if e.entry.protocol == "quadruped"]
+    if not shown:
+        return ["No quadruped agent has its final evaluation yet (Table 8 analog).", ""]
+    lines = [
+        "| agent | " + " | ".join(QUADRUPED_CASES) + " |",
+        "|---|" + "---|" * len(QUADRUPED_CASES),
+    ]
+    for evaluated in shown:
+        cells = []
+        for case in QUADRUPED_CASES:
+            survived = evaluated.survived(case)
+            cells.append("-" if survived is None else share_cell(float(np.mean(survived)), len(survived)))
+        lines.append(f"| [{evaluated.label}]({link(evaluated.path, out)}) | " + " | ".join(cells) + " |")
+    paper = ", ".join(
+        f"{case}: PPO {values['huri-baseline']:.0f}%, HuRi {values['huri']:.0f}%"
+        for case, values in PAPER_TABLE8.items()
+    )
+    return [*lines, "", f"The paper's Table 8 (Go2 in Isaac Gym, 5 seeds): {paper}.", ""]
