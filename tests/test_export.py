@@ -27,13 +27,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 import sb3_huri
 import zerith_gym  # noqa: F401  (registers Zerith1-v0)
 from sb3_huri import VARIANTS, HuRiPPO
-from sb3_huri.export import (
-    FORMAT,
-    actor_of,
-    check_export,
-    export_actor,
-    main,
-)
+from sb3_huri.export import FORMAT, actor_of, check_export, export_actor
+from sb3_huri.export.__main__ import main
 from sb3_huri.zoo.runs import load_run
 from zerith_gym import gait, robot
 from zerith_gym.humanoid_task import FALL_HEIGHT, FALL_TILT
@@ -152,6 +147,26 @@ def test_every_method_exports(tmp_path: Path, variant: str) -> None:
     export_actor(model, venv, ENV_ID, output)
     assert metadata(output)["variant"] == variant
     assert check_export(output, model, venv) < 1e-5
+
+
+def test_the_quadruped_exports_with_its_own_layout_joints_and_gains(tmp_path: Path) -> None:
+    """`Go2Like-v0`: the metadata is the quadruped's (from its `RobotSpec` and `LocomotionTask`)."""
+    from zerith_gym import legged_gym_task, quadruped_robot
+    from zerith_gym.vec_env import make_vec_env
+
+    venv = VecNormalize(make_vec_env(2, seed=0, robot="go2like", workers=0), norm_obs_keys=["policy"])
+    model = HuRiPPO("MultiInputPolicy", venv, n_steps=16, policy_kwargs=dict(net_arch=[16]), device="cpu")
+    output = tmp_path / "go2.onnx"
+    export_actor(model, venv, "Go2Like-v0", output)
+    data = metadata(output)
+    assert data["robot"] == "Go2-like quadruped" and data["mjcf"].endswith("go2like.xml")
+    assert data["joint_names"] == list(quadruped_robot.JOINT_NAMES) and data["kp"] == [20.0] * 12
+    layout = {block["name"]: block for block in data["observation_layout"]}
+    assert list(layout) == [name for name, _ in legged_gym_task.POLICY_LAYOUT]
+    assert layout["height_samples"]["start"] == 48 and len(data["height_points"]) == 187
+    assert data["command_ranges_training"]["vx"] == [-1.0, 1.0]  # quadruped-train, its default scenario
+    assert check_export(output, model, venv) < 1e-5
+    venv.close()
 
 
 def test_plain_sb3_ppo_with_a_box_observation_and_tanh_layers(tmp_path: Path) -> None:

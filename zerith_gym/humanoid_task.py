@@ -21,6 +21,7 @@ from zerith_gym.observations import (
     CRITIC_SCALE,
     CRITIC_SIZE,
     HEIGHT_SAMPLE_OFFSETS,
+    POLICY_LAYOUT,
     POLICY_SIZE,
     policy_noise_scale,
 )
@@ -233,6 +234,19 @@ def _humanoid_observe(
     )
 
 
+DEPLOYMENT_NOTES = {
+    "base_roll_pitch": "pelvis roll = atan2(u_y, u_z) and pitch = asin(-u_x) (rad), where u is the world's "
+    "up axis expressed in the pelvis (IMU) frame, i.e. minus the normalized gravity the IMU measures",
+    "base_angular_velocity": "gyro at the pelvis, pelvis frame (rad/s)",
+    "clock_sin_cos": "sin and cos of 2 pi phase, phase = (k mod gait_steps) / gait_steps where k counts the "
+    "control steps since the controller started (k = 0 for the first observation)",
+    "command": "commanded vx, vy (m/s) and yaw rate (rad/s), in the base's heading frame",
+    "joint_position_offset": "joint positions minus default_joint_pos, in joint_names order (rad)",
+    "joint_velocity": "joint velocities, in joint_names order (rad/s)",
+    "last_action": "the action this graph returned at the previous control step (zeros at the start)",
+}
+"""How each block of Zerith-1's policy observation is measured on the robot."""
+
 HUMANOID_TASK = LocomotionTask(
     robot=robot.ZERITH1,
     policy_size=POLICY_SIZE,
@@ -244,6 +258,13 @@ HUMANOID_TASK = LocomotionTask(
     critic_layout=CRITIC_LAYOUT,
     critic_offset=CRITIC_OFFSET,
     critic_scale=CRITIC_SCALE,
+    policy_layout=POLICY_LAYOUT,
+    deployment_notes=DEPLOYMENT_NOTES,
+    deployment_extras={
+        "gait_period": gait.GAIT_PERIOD,
+        "gait_steps": round(gait.GAIT_PERIOD / robot.CONTROL_DT),
+        "gait_foot_phase_offsets": gait.FOOT_PHASE_OFFSETS.tolist(),
+    },
     gait_steps=len(GAIT_TABLE),
 )
 """Zerith-1 walking with the paper's gait clock, observations and Table-4 rewards."""

@@ -220,6 +220,20 @@ def judge(
     return judged, state._replace(feet_air_time=air_time * ~touching, last_contact=contact)
 
 
+DEPLOYMENT_NOTES = {
+    "base_linear_velocity": "trunk velocity in the trunk frame (m/s): an estimate on the robot (legged_gym's "
+    "policy reads it too)",
+    "base_angular_velocity": "gyro at the trunk, trunk frame (rad/s)",
+    "projected_gravity": "the gravity direction in the trunk (IMU) frame, normalized",
+    "command": "commanded vx, vy (m/s) and yaw rate (rad/s), in the base's heading frame",
+    "joint_position_offset": "joint positions minus default_joint_pos, in joint_names order (rad)",
+    "joint_velocity": "joint velocities, in joint_names order (rad/s)",
+    "last_action": "the action this graph returned at the previous control step (zeros at the start)",
+    "height_samples": "the trunk's height above the ground at height_points (m; x forward, y left in the "
+    "trunk's heading frame), clipped to height_clip: needs a height map around the robot",
+}
+"""How each block of the quadruped's policy observation is measured on the robot."""
+
 QUADRUPED_TASK = LocomotionTask(
     robot=quad.GO2LIKE,
     policy_size=POLICY_SIZE,
@@ -233,5 +247,8 @@ QUADRUPED_TASK = LocomotionTask(
     critic_layout=CRITIC_LAYOUT,
     critic_offset=CRITIC_OFFSET,
     critic_scale=CRITIC_SCALE,
+    policy_layout=POLICY_LAYOUT,
+    deployment_notes=DEPLOYMENT_NOTES,
+    deployment_extras={"height_points": HEIGHT_POINTS.tolist(), "height_clip": list(HEIGHT_CLIP)},
 )
 """The Go2-like quadruped on legged_gym's task."""

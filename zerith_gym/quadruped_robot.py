@@ -131,10 +131,14 @@ class Sensors(NamedTuple):
 
 GO2LIKE = RobotSpec(
     name="go2like",
+    display_name="Go2-like quadruped",
     asset_path=ASSET_PATH,
     joint_names=JOINT_NAMES,
     default_joint_pos=DEFAULT_JOINT_POS,
     action_scale=ACTION_SCALE,
+    kp=KP,
+    kd=KD,
+    torque_limit=TORQUE_LIMIT,
     total_mass=TOTAL_MASS,
     root_body=ROOT_BODY,
     force_bodies={"centroid": (ROOT_BODY,), "hands": (), "feet": FOOT_BODIES},

@@ -132,10 +132,14 @@ def sensor_blocks(model, groups: dict[str, tuple[str, ...]]) -> dict[str, slice]
 
 ZERITH1 = RobotSpec(
     name="zerith1",
+    display_name="Zerith-1",
     asset_path=ASSET_PATH,
     joint_names=JOINT_NAMES,
     default_joint_pos=DEFAULT_JOINT_POS,
     action_scale=ACTION_SCALE,
+    kp=KP,
+    kd=KD,
+    torque_limit=TORQUE_LIMIT,
     total_mass=TOTAL_MASS,
     root_body=ROOT_BODY,
     force_bodies={"centroid": (ROOT_BODY,), "hands": HAND_BODIES, "feet": FOOT_BODIES},

@@ -23,6 +23,8 @@ class RobotSpec:
     """One robot's facts, as the model (`asset_path`) declares them (each robot's tests check the match)."""
 
     name: str
+    display_name: str
+    """The robot's name for people (deployment files, figures)."""
     asset_path: Path
     joint_names: tuple[str, ...]
     """The actuated joints, in action and observation order (the actuators' order in the MJCF)."""
@@ -30,6 +32,10 @@ class RobotSpec:
     """(joints,) rad: the pose an action of zero commands; actions are offsets from it."""
     action_scale: np.ndarray
     """(joints,) rad: the joint-position offset of an action of +-1."""
+    kp: np.ndarray
+    kd: np.ndarray
+    torque_limit: np.ndarray
+    """(joints,) each: the nominal PD gains (Nm/rad, Nm s/rad) and torque limits (Nm) of the MJCF."""
     total_mass: float
     root_body: str
     """The floating base: the robot's "centroid" for external forces."""

@@ -24,7 +24,7 @@ robots stepped together follow exactly the trajectories of n single environments
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, NamedTuple
 
@@ -481,6 +481,12 @@ class LocomotionTask:
     critic_offset: np.ndarray
     critic_scale: np.ndarray
     """The critic observation is `(value - critic_offset) * critic_scale` of each entry's physical value."""
+    policy_layout: tuple[tuple[str, int], ...]
+    """The policy observation's (name, size) blocks."""
+    deployment_notes: Mapping[str, str] = field(default_factory=dict)
+    """How each policy block is measured on the robot (an exported actor's metadata tells a controller)."""
+    deployment_extras: Mapping[str, Any] = field(default_factory=dict)
+    """More of what a controller needs to build the observation (the gait clock, the height points)."""
     gait_steps: int = 1
     """Control steps in the gait clock's cycle (1: the task has no clock)."""
     soft_limit: float = JOINT_SOFT_LIMIT
