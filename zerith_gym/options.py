@@ -1,5 +1,5 @@
-"""The options every Zerith env takes (`ZerithOptions`, declared once), their spaces and their checks:
-observation modes and format, the action space and action checks, reset options and commands."""
+"""The options every Zerith env takes (`ZerithOptions`, declared once) and their checks: observation modes,
+robots, scenarios, reward weights, reset options and commands. The spaces are in `zerith_gym.spaces`."""
 
 from __future__ import annotations
 
@@ -8,10 +8,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 
-from zerith_gym import robot
-from zerith_gym.humanoid_task import HUMANOID_TASK
 from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.robots import locomotion_task
 from zerith_gym.scenarios import Scenario, resolve_scenario
@@ -103,34 +100,3 @@ def reset_command(options: Mapping[str, Any] | None, also_valid: tuple[str, ...]
     if "command" not in options:
         return None
     return check_command(options["command"], "options['command']")
-
-
-def observation_space(obs_mode: str, task: LocomotionTask = HUMANOID_TASK) -> spaces.Space:
-    """The observation space of one robot of `task` for `obs_mode`."""
-    policy = spaces.Box(-np.inf, np.inf, shape=(task.policy_size,), dtype=np.float32)
-    if obs_mode == "policy":
-        return policy
-    critic = spaces.Box(-np.inf, np.inf, shape=(task.critic_size,), dtype=np.float32)
-    return spaces.Dict({"policy": policy, "critic": critic})
-
-
-def format_observation(obs_mode: str, policy: np.ndarray, critic: np.ndarray) -> Any:
-    """The observation as `obs_mode` gives it, from the policy and critic parts (one robot or a batch)."""
-    if obs_mode == "policy":
-        return policy
-    return {"policy": policy, "critic": critic}
-
-
-ACTION_SPACE = spaces.Box(-1.0, 1.0, shape=(robot.NUM_JOINTS,), dtype=np.float32)
-
-
-def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """Actions as float64 of `shape`, clipped to [-1, 1]; ValueError on a wrong shape or non-finite values."""
-    actions = np.array(actions, dtype=np.float64)
-    if actions.shape != shape:
-        raise ValueError(f"action must have shape {shape}, got {actions.shape}")
-    if not np.isfinite(actions).all():
-        raise ValueError(f"action contains NaN or infinite values: {actions}")
-    return np.minimum(
-        np.maximum(actions, -1.0, out=actions), 1.0, out=actions
-    )  # np.clip, without its overhead

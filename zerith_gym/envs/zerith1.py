@@ -10,15 +10,9 @@ import numpy as np
 from zerith_gym import robot
 from zerith_gym.cpu.batch import ZerithBatch
 from zerith_gym.infos import step_infos
-from zerith_gym.options import (
-    ACTION_SPACE,
-    ZerithOptions,
-    check_actions,
-    format_observation,
-    observation_space,
-    reset_command,
-)
+from zerith_gym.options import ZerithOptions, reset_command
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
+from zerith_gym.spaces import ACTION_SPACE, check_actions, format_observation, observation_space
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule
 
