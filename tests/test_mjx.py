@@ -212,6 +212,48 @@ def test_mjx_follows_the_cpu_backend_with_moving_legs(policy):
     mjx.close()
 
 
+QUADRUPED_TOLERANCE = {
+    "base_linear_velocity": 0.02,
+    "projected_gravity": 0.02,
+    "joint_position_offset": 0.05,
+    "height_samples": 5e-3,
+}
+"""Policy blocks of the quadruped compared under random actions (measured worst cases over 60 steps, x ~3:
+0.0075 m/s, 0.0048, 0.018 rad, 0.00055 m). Its velocities and contact forces part further at touchdowns
+(joint velocities by up to 1.07 rad/s, a foot's contact flag a step apart): a point foot on a light leg
+lands a sub-step earlier or later on one backend, which the rewards (within 5e-4) hardly see."""
+
+
+def test_mjx_follows_the_cpu_backend_with_the_quadruped():
+    """`Go2Like-v0` on both backends from the same start: its legged_gym observations (height samples
+    included), rewards and falls, and its contact readings (four feet, base and leg contacts), which MJX
+    computes from its contacts as it does Zerith-1's. Standing for 20 steps (landing from the reset), then
+    60 of random actions."""
+    from zerith_gym.legged_gym_task import POLICY_LAYOUT as QUAD_POLICY
+
+    n = 3
+    kwargs = dict(robot="go2like", scenario="nominal", command=(0.5, 0.0, 0.0), episode_steps=1000)
+    cpu = zerith_gym.make_vec_env(n, seed=0, backend="cpu", workers=0, **kwargs)
+    mjx = zerith_gym.make_vec_env(n, seed=0, backend="mjx", **kwargs)
+    obs_cpu, obs_mjx = cpu.reset(), mjx.reset()
+    np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=1e-4)
+    np.testing.assert_allclose(obs_mjx["critic"], obs_cpu["critic"], atol=1e-3)
+    blocks = layout_slices(QUAD_POLICY)
+    rng = np.random.default_rng(0)
+    for step in range(80):
+        actions = np.zeros((n, 12)) if step < 20 else rng.normal(scale=0.3, size=(n, 12))
+        obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
+        obs_mjx, reward_mjx, done_mjx, info_mjx = mjx.step(actions)
+        np.testing.assert_array_equal(done_mjx, done_cpu, err_msg=f"step {step}")
+        for name, atol in QUADRUPED_TOLERANCE.items():
+            block = blocks[name]
+            np.testing.assert_allclose(obs_mjx["policy"][:, block], obs_cpu["policy"][:, block], atol=atol)
+        np.testing.assert_allclose(reward_mjx, reward_cpu, atol=2e-3, err_msg=f"step {step}")
+    assert set(info_mjx[0]["reward_terms"]) == set(cpu.reward_names)
+    cpu.close()
+    mjx.close()
+
+
 def test_mjx_episodes_end_and_restart_inside_the_step():
     """Falls terminate, the time limit truncates, terminal observations and Monitor episode info come out."""
     env = zerith_gym.make_vec_env(

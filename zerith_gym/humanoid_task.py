@@ -227,7 +227,9 @@ def _humanoid_judge(
 def _humanoid_observe(
     state: TaskState, r: robot.Sensors, noise: np.ndarray | None, c: TaskConstants
 ) -> tuple[np.ndarray, np.ndarray]:
-    clock = GAIT_TABLE[state.gait_step]
+    xp = namespace(r.base_pos)
+    table = GAIT_TABLE if xp is np else xp.asarray(GAIT_TABLE, r.base_pos.dtype)
+    clock = table[state.gait_step]
     g = ground(r, c.terrain)
     return observations(
         r, g, clock, state.command, state.actions[:, 0], state.force, state.domain_vector, noise

@@ -93,11 +93,6 @@ class ZerithVecEnv(VecEnv):
                 raise ValueError("workers and physics_threads are options of the cpu backend, not of mjx")
             from zerith_gym.mjx import MjxBatch, SolverSettings
 
-            if self.options.robot != "zerith1":
-                raise ValueError(
-                    f"the mjx backend simulates zerith1 only; use backend='cpu' for {self.options.robot}"
-                )
-
             self.workers = 0
             self.robots = MjxBatch(num_envs, self.options, SolverSettings(solver_iterations, ls_iterations))
         elif solver_iterations is not None or ls_iterations is not None:

@@ -1,7 +1,7 @@
-"""n Zerith-1 robots on MJX: the task state as a JAX pytree, and jitted reset and step functions.
+"""n robots on MJX (Zerith-1 or the quadruped): the task state as a JAX pytree, jitted reset and step.
 
-The task is the CPU backend's: `reset_values`, `begin_step`, `end_step` and `observations` from
-`zerith_gym.task`, on the same `TaskState` record, the domain fields from
+The task is the CPU backend's: `reset_values`, `begin_step`, `end_step` from `zerith_gym.task` and the
+robot's `LocomotionTask` (its `observe` and `judge`), on the same `TaskState` record, the domain fields from
 `zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
 needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
 key split every step (not one numpy generator per robot), and robots whose episode ended are reset
@@ -18,18 +18,14 @@ import jax.numpy as jnp
 import numpy as np
 from mujoco import mjx
 
-from zerith_gym import robot
 from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
-from zerith_gym.humanoid_task import GAIT_TABLE, HUMANOID_TASK, ground, observations
 from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
 from zerith_gym.options import ZerithOptions
 from zerith_gym.physics import domain_model_fields
 from zerith_gym.randomization import DomainParams
-from zerith_gym.rewards import REWARD_NAMES, resolve_reward_weights
+from zerith_gym.rewards import resolve_reward_weights
 from zerith_gym.scenarios import Scenario
 from zerith_gym.task import (
-    RESET_DRAWS,
-    STEP_DRAWS,
     ScenarioArrays,
     TaskConstants,
     TaskState,
@@ -65,15 +61,16 @@ class MjxBatch:
         self.options = options
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
-        self.physics = MjxPhysics(self.terrain, solver)
+        self.task = task = options.task
+        self.physics = MjxPhysics(self.terrain, solver, task.robot)
         model = self.physics.model
-        self.sensors = robot.Sensors.layout(model)
+        self.sensors = task.robot.sensor_layout(model)
         self.constants: TaskConstants = task_constants(
             self.terrain,
-            np.array([model.joint(name).range for name in robot.JOINT_NAMES]),
-            resolve_reward_weights(options.reward_weights),
+            np.array([model.joint(name).range for name in task.robot.joint_names]),
+            resolve_reward_weights(options.reward_weights, task.reward_weights),
             int(options.episode_steps),
-            HUMANOID_TASK,
+            task,
         )
         tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots))  # fixed: no curriculum on MJX
         self._spawn, self._levels = tiles.spawn_points(np.arange(num_robots)), tiles.levels
@@ -88,7 +85,10 @@ class MjxBatch:
         """Follow `scenario` from now on (the arrays change, the compiled functions stay)."""
         check_scenario_change(self.scenario, scenario)
         self.scenario = scenario
-        arrays = scenario_arrays(scenario, self.options.fixed_command(scenario), self.constants.episode_steps)
+        for target in scenario.force.targets:
+            self.task.robot.force_target_bodies(target)
+        command, steps = self.options.fixed_command(scenario), self.constants.episode_steps
+        arrays = scenario_arrays(scenario, command, steps, self.task.noise_scale)
         self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
 
     # ------------------------------------------------- the robots contract (zerith_gym.contract.Robots)
@@ -149,7 +149,7 @@ class MjxBatch:
         step = jax.device_get(step)  # numpy arrays, in one transfer
         out = step.out._replace(reward=step.out.reward.astype(float), terms=step.out.terms.astype(float))
         as_float = {name: getattr(step, name).astype(float) for name in ("force", "command", "next_command")}
-        return step._replace(out=out, reward_names=REWARD_NAMES, **as_float)
+        return step._replace(out=out, reward_names=self.task.reward_names, **as_float)
 
     def close(self) -> None:
         """Nothing to stop: the device memory goes with the object."""
@@ -157,56 +157,50 @@ class MjxBatch:
     # ------------------------------------------------------------------------- traced functions
     def _start(self, key: jax.Array, sc: ScenarioArrays, overrides: jax.Array) -> MjxState:
         """Fresh episodes of every robot, drawn from `key` (commands fixed where `overrides` is finite)."""
-        n = self.num_robots
+        n, task = self.num_robots, self.task
         draw, key = jax.random.split(key)
-        uniforms = jax.random.uniform(draw, (n, RESET_DRAWS))
-        start = reset_values(uniforms, sc, jnp.asarray(self._spawn, _real()), self.terrain.spec.spawn_jitter)
+        uniforms = jax.random.uniform(draw, (n, task.draws.reset))
+        spawn = jnp.asarray(self._spawn, _real())
+        start = reset_values(uniforms, sc, spawn, self.terrain.spec.spawn_jitter, task.robot, task.draws)
         command = jnp.where(jnp.isfinite(overrides), overrides, start.command)
         fields = domain_model_fields(self.physics.nominal, DomainParams.from_vector(start.domain_vector))
         data = jax.vmap(self.physics.reset)(fields, start.qpos)
         readings = self.sensors.read(jax.vmap(self.physics.sensordata)(data))
-        actions = jnp.zeros((n, 3, robot.NUM_JOINTS))
-        force = jnp.zeros_like(command)
-        policy, critic = observations(
-            readings,
-            ground(readings, self.terrain),
-            jnp.broadcast_to(jnp.asarray(GAIT_TABLE[0], _real()), (n, GAIT_TABLE.shape[1])),
-            command,
-            actions[:, 0],
-            force,
-            start.domain_vector,
-            observation_noise(start.noise_uniforms, sc),
-        )
-        task = TaskState(
+        feet = len(task.robot.foot_bodies)
+        state = TaskState(
             step_count=jnp.zeros(n, jnp.int32),
             force_offset=start.force_offset.astype(jnp.int32),
             gait_step=jnp.zeros(n, jnp.int32),
             command=command,
-            actions=actions,
+            actions=jnp.zeros((n, 3, task.robot.num_joints), _real()),
             joint_vel=readings.joint_vel,
-            force=force,
+            force=jnp.zeros_like(command),
             domain_vector=start.domain_vector,
             lags=start.lags.astype(jnp.int32),
-            policy_obs=policy,
-            critic_obs=critic,
-            feet_air_time=jnp.zeros((n, len(robot.FOOT_BODIES)), _real()),
-            last_contact=jnp.zeros((n, len(robot.FOOT_BODIES)), bool),
+            policy_obs=jnp.zeros((n, task.policy_size), jnp.float32),
+            critic_obs=jnp.zeros((n, task.critic_size), jnp.float32),
+            feet_air_time=jnp.zeros((n, feet), _real()),
+            last_contact=jnp.zeros((n, feet), bool),
         )
-        return MjxState(data=data, fields=fields, key=key, task=task)
+        noise = observation_noise(start.noise_uniforms, sc, task.draws)
+        policy, critic = task.observe(state, readings, noise, self.constants)
+        state = state._replace(policy_obs=policy, critic_obs=critic)
+        return MjxState(data=data, fields=fields, key=key, task=state)
 
     def _step_all(
         self, state: MjxState, actions: jax.Array, sc: ScenarioArrays
     ) -> tuple[MjxState, BatchStep]:
         n = self.num_robots
         key, draw, restart = jax.random.split(state.key, 3)
-        u = jax.random.uniform(draw, (n, STEP_DRAWS))
-        task, drawn, targets = begin_step(state.task, actions, u, sc, HUMANOID_TASK)
+        u = jax.random.uniform(draw, (n, self.task.draws.step))
+        task, drawn, targets = begin_step(state.task, actions, u, sc, self.task)
         data, unstable = jax.vmap(self.physics.control_step)(
             state.fields, state.data, targets, task.lags, drawn.force, drawn.force_target, drawn.kicks
         )
         sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
         readings = self.sensors.read(sensordata)
-        task, out = end_step(task, readings, unstable, observation_noise(u, sc), self.constants)
+        noise = observation_noise(u, sc, self.task.draws)
+        task, out = end_step(task, readings, unstable, noise, self.constants)
         stepped = state._replace(data=data, key=key, task=task)
         ended = out.terminated | out.truncated
 

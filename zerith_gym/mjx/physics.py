@@ -3,9 +3,10 @@
 The same MJCF and terrain as the CPU backend (`zerith_gym.physics.build_model`), with two differences
 that MJX imposes, both invisible to the task:
 
-- MJX has no contact sensors with body or subtree matching. The model is put on the device without the
-  three contact sensors (feet forces, leg collision), and `MjxPhysics.sensordata` computes them from
-  MJX's contacts, appended where the CPU model has them, so the task reads one sensor layout.
+- MJX has no contact sensors with body or subtree matching. The model is put on the device without its
+  contact sensors (Zerith-1's feet forces and leg collision, the quadruped's feet forces and base and leg
+  contacts), and `MjxPhysics.sensordata` computes them from MJX's contacts, read from the MJCF's own
+  declarations (`_ContactSensor`) and appended where the CPU model has them, so the task reads one layout.
 - MJX raises no bad-state warnings. A simulation counts as unstable when a sub-step leaves non-finite
   or huge (beyond MuJoCo's 1e10 bound) positions, velocities or accelerations; the task then truncates
   the episode, as on the CPU.
@@ -25,13 +26,12 @@ import numpy as np
 from mujoco import mjx
 from mujoco.mjx._src.support import contact_force_dim
 
-from zerith_gym import robot
-from zerith_gym.disturbances import FORCE_TARGETS
+from zerith_gym.disturbances import FORCE_TARGET_NAMES
 from zerith_gym.physics import GROUND_CLEARANCE, NominalModel, build_model, lowest_sole_clearance
+from zerith_gym.robot import ZERITH1
+from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.terrain import Terrain
 
-CONTACT_SENSORS = ("left_foot_force", "right_foot_force", "leg_collision")
-"""The MJCF's contact sensors, which MJX cannot evaluate: computed from MJX's contacts instead."""
 UNSTABLE_BOUND = 1e10
 """MuJoCo's bad-state bound (mjMAXVAL) on positions, velocities and accelerations."""
 
@@ -45,17 +45,19 @@ class SolverSettings:
 
 
 class MjxPhysics:
-    """The Zerith-1 model on the device, for one terrain.
+    """A robot's model (Zerith-1's unless given) on the device, for one terrain.
 
     `model` (CPU, with the contact sensors) gives the sensor layout and the nominal values; `device_model`
     is the MJX model without the contact sensors.
     """
 
-    def __init__(self, terrain: Terrain, solver: SolverSettings = SolverSettings()) -> None:
+    def __init__(
+        self, terrain: Terrain, solver: SolverSettings = SolverSettings(), robot: RobotSpec = ZERITH1
+    ) -> None:
         self.terrain = terrain
-        self.model = build_model(terrain)
-        self.nominal = NominalModel.capture(self.model, terrain)
-        stripped = _without_contact_sensors(terrain)
+        self.model = build_model(terrain, robot)
+        self.nominal = NominalModel.capture(self.model, terrain, robot)
+        stripped = _without_contact_sensors(terrain, robot)
         for name, value in (("iterations", solver.iterations), ("ls_iterations", solver.ls_iterations)):
             if value is not None:
                 if not isinstance(value, int) or value < 1:
@@ -64,20 +66,17 @@ class MjxPhysics:
         self.solver = SolverSettings(stripped.opt.iterations, stripped.opt.ls_iterations)
         self.device_model = mjx.put_model(stripped)
         self._template = mjx.make_data(self.device_model)
-        self._check_sensor_layout(stripped)
         # Which bodies each force target pushes: (targets, nbody) of 0 / 1.
-        self._force_mask = np.zeros((len(FORCE_TARGETS), self.model.nbody))
-        for index, names in enumerate(FORCE_TARGETS.values()):
-            self._force_mask[index, [self.model.body(name).id for name in names]] = 1.0
+        self._force_mask = np.zeros((len(FORCE_TARGET_NAMES), self.model.nbody))
+        for index, target in enumerate(FORCE_TARGET_NAMES):
+            bodies = [self.model.body(name).id for name in robot.force_bodies.get(target, ())]
+            self._force_mask[index, bodies] = 1.0
         self._soles = self.nominal.sole_geoms
         self._sole_radius = jnp.asarray(self.nominal.sole_radius)
-        self._contacts = _ContactMap.of(self.model, self._template, terrain.ground_geoms)
-
-    def _check_sensor_layout(self, stripped: mujoco.MjModel) -> None:
-        layout = robot.Sensors.layout(self.model)
-        contact = [layout.foot_force, layout.leg_collision]
-        if [block.start for block in contact] != [stripped.nsensordata, stripped.nsensordata + 6]:
-            raise RuntimeError("the contact sensors must be the last sensors of the MJCF, feet then legs")
+        self._ctrl = jnp.asarray(self.nominal.default_ctrl)
+        if not (np.asarray(self._template._impl.contact.dim) == 3).all():
+            raise RuntimeError("the MJX contact readings expect condim 3 on every contact")
+        self._contacts = _contact_sensors(self.model, stripped)
         self.nsensordata = self.model.nsensordata
 
     # --------------------------------------------------------------------------- one robot each
@@ -88,7 +87,7 @@ class MjxPhysics:
     def reset(self, fields: dict[str, jax.Array], qpos: jax.Array) -> mjx.Data:
         """One robot at rest at `qpos` (base height 0), lowered so its soles just clear the ground."""
         model = self.with_fields(fields)
-        data = self._template.replace(qpos=qpos, ctrl=jnp.asarray(robot.DEFAULT_JOINT_POS, qpos.dtype))
+        data = self._template.replace(qpos=qpos, ctrl=self._ctrl.astype(qpos.dtype))
         data = mjx.kinematics(model, data)
         lowest = lowest_sole_clearance(data.geom_xpos[self._soles][None], self._sole_radius, self.terrain)[0]
         data = data.replace(qpos=qpos.at[2].set(qpos[2] - lowest + GROUND_CLEARANCE))
@@ -125,63 +124,79 @@ class MjxPhysics:
 
     def sensordata(self, data: mjx.Data) -> jax.Array:
         """One robot's sensor readings in the CPU model's layout: MJX's sensors, then the contact ones."""
-        return jnp.concatenate([data.sensordata, self._contacts.readings(self.device_model, data)])
+        force, index = contact_force_dim(self.device_model, data, 3)  # every contact has condim 3
+        contact = data._impl.contact
+        world = jnp.einsum("ci,cij->cj", force[:, :3], contact.frame[index])  # on geom 2, world frame
+        first, second = contact.geom[index, 0], contact.geom[index, 1]
+        touching = (contact.dist < 0) & (contact.geom[:, 0] >= 0)
+        readings = [sensor.reading(first, second, world, contact.geom, touching) for sensor in self._contacts]
+        return jnp.concatenate([data.sensordata, *readings])
 
 
 @dataclass(frozen=True)
-class _ContactMap:
-    """Look-up tables from geom id to its role in the contact readings (index -1, an empty slot, is last)."""
+class _ContactSensor:
+    """One contact sensor of the MJCF, as MJX's contacts give it: which geoms are on each side (look-up
+    tables over geom ids, index -1, an empty slot, last) and what it reports."""
 
-    is_ground: np.ndarray  # (ngeom + 1,) bool
-    foot: np.ndarray  # (ngeom + 1,) 0 left foot, 1 right foot, 2 neither
-    leg: np.ndarray  # (ngeom + 1,) 0 left leg, 1 right leg, 2 neither
+    side1: np.ndarray  # (ngeom + 1,) bool
+    side2: np.ndarray  # (ngeom + 1,) bool
+    force: bool
+    """True: the net force of side 1 on side 2 in the world frame (3); False: the contacts found (1)."""
 
-    @staticmethod
-    def of(model: mujoco.MjModel, template: mjx.Data, ground_geoms: tuple[str, ...]) -> _ContactMap:
-        if not (np.asarray(template._impl.contact.dim) == 3).all():
-            raise RuntimeError("the MJX contact readings expect condim 3 on every contact")
-        is_ground = np.zeros(model.ngeom + 1, dtype=bool)
-        is_ground[[model.geom(name).id for name in ground_geoms]] = True
-        foot = np.full(model.ngeom + 1, 2)
-        for index, geoms in enumerate(robot.SOLE_GEOMS):
-            foot[[model.geom(name).id for name in geoms]] = index
-        leg = np.full(model.ngeom + 1, 2)
-        leg[_subtree_geoms(model, "left_hip_yaw_link")] = 0
-        leg[_subtree_geoms(model, "right_hip_yaw_link")] = 1
-        return _ContactMap(is_ground, foot, leg)
-
-    def readings(self, device_model: mjx.Model, data: mjx.Data) -> jax.Array:
-        """Ground force on each foot in the world frame (6,) and the legs' contact count (1,)."""
-        contact = data._impl.contact
-        is_ground, foot, leg = jnp.asarray(self.is_ground), jnp.asarray(self.foot), jnp.asarray(self.leg)
-        force, index = contact_force_dim(device_model, data, 3)  # every contact has condim 3
-        world = jnp.einsum("ci,cij->cj", force[:, :3], contact.frame[index])  # on geom 2, world frame
-        first, second = contact.geom[index, 0], contact.geom[index, 1]
-        feet = jnp.arange(2)[:, None]
-        sign = (is_ground[first] & (foot[second] == feet)).astype(world.dtype) - (
-            is_ground[second] & (foot[first] == feet)
-        ).astype(world.dtype)  # (2, contacts): the ground's force on each foot
-        foot_force = (sign @ world).reshape(6)
-        legs = leg[contact.geom[:, 0]] + leg[contact.geom[:, 1]] == 1  # a left and a right leg geom
-        touching = (contact.dist < 0) & legs & (contact.geom[:, 0] >= 0)
-        return jnp.concatenate([foot_force, touching.sum(keepdims=True).astype(world.dtype)])
+    def reading(
+        self, first: jax.Array, second: jax.Array, world: jax.Array, geoms: jax.Array, touching: jax.Array
+    ) -> jax.Array:
+        side1, side2 = jnp.asarray(self.side1), jnp.asarray(self.side2)
+        if self.force:
+            sign = (side1[first] & side2[second]).astype(world.dtype) - (side2[first] & side1[second]).astype(
+                world.dtype
+            )
+            return sign @ world
+        a, b = geoms[:, 0], geoms[:, 1]
+        found = touching & ((side1[a] & side2[b]) | (side2[a] & side1[b]))
+        return found.sum(keepdims=True).astype(world.dtype)
 
 
-def _without_contact_sensors(terrain: Terrain) -> mujoco.MjModel:
-    spec = mujoco.MjSpec.from_file(str(robot.ASSET_PATH))
+def _contact_sensors(model: mujoco.MjModel, stripped: mujoco.MjModel) -> list[_ContactSensor]:
+    """The model's contact sensors, in order; RuntimeError unless they are its last sensors, each a body or
+    subtree on each side reporting the net force or the contacts found."""
+    sensors, start = [], stripped.nsensordata
+    for i in np.flatnonzero(model.sensor_type == mujoco.mjtSensor.mjSENS_CONTACT):
+        if model.sensor_adr[i] != start:
+            raise RuntimeError("the contact sensors must be the last sensors of the MJCF")
+        sides = [
+            _side_geoms(model, int(kind), int(index))
+            for kind, index in ((model.sensor_objtype[i], model.sensor_objid[i]),
+                                (model.sensor_reftype[i], model.sensor_refid[i]))
+        ]  # fmt: skip
+        sensors.append(_ContactSensor(*sides, force=bool(model.sensor_dim[i] == 3)))
+        start += int(model.sensor_dim[i])
+    if start != model.nsensordata:
+        raise RuntimeError("the contact sensors must be the last sensors of the MJCF")
+    return sensors
+
+
+def _side_geoms(model: mujoco.MjModel, kind: int, index: int) -> np.ndarray:
+    """A look-up table (ngeom + 1,) of the geoms of a body or of a body's subtree."""
+    if kind == mujoco.mjtObj.mjOBJ_BODY:
+        bodies = [index]
+    elif kind == mujoco.mjtObj.mjOBJ_XBODY:  # a subtree
+        bodies = [b for b in range(model.nbody) if _is_in_subtree(model, b, index)]
+    else:
+        raise RuntimeError(f"contact sensors of object type {kind} are not read on MJX")
+    table = np.zeros(model.ngeom + 1, dtype=bool)
+    table[np.flatnonzero(np.isin(model.geom_bodyid, bodies))] = True
+    return table
+
+
+def _without_contact_sensors(terrain: Terrain, robot: RobotSpec) -> mujoco.MjModel:
+    spec = mujoco.MjSpec.from_file(str(robot.asset_path))
     terrain.add_to(spec)
-    for name in CONTACT_SENSORS:
-        spec.delete(spec.sensor(name))
+    for sensor in [s for s in spec.sensors if s.type == mujoco.mjtSensor.mjSENS_CONTACT]:
+        spec.delete(sensor)
     model = spec.compile()
-    model.opt.timestep = robot.PHYSICS_DT
+    model.opt.timestep = robot.physics_dt
     return model
-
-
-def _subtree_geoms(model: mujoco.MjModel, root: str) -> np.ndarray:
-    """Geoms of the bodies in the subtree of body `root`."""
-    root_id = model.body(root).id
-    bodies = [b for b in range(model.nbody) if _is_in_subtree(model, b, root_id)]
-    return np.flatnonzero(np.isin(model.geom_bodyid, bodies))
 
 
 def _is_in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
