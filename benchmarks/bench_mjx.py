@@ -1,4 +1,5 @@
-"""Zerith-1 on MJX: raw physics, the env, and HuRiPPO against SB3 PPO, on JAX's default device.
+"""Zerith-1 (or the quadruped, `--env Go2Like-v0`) on MJX: raw physics, the env, and HuRiPPO against SB3
+PPO, on JAX's default device.
 
 Meant for a GPU machine (`pip install -e ".[mjx]"` and JAX's CUDA build); it also runs with JAX on the
 CPU, slowly, to check the pipeline. Printed, per number of robots:
@@ -8,7 +9,7 @@ CPU, slowly, to check the pipeline. Printed, per number of robots:
 - `env`: env steps/s of `make_vec_env(n, backend="mjx")` under random actions: physics, the task, the
   in-step resets and the numpy hand-off with SB3's info dicts;
 - `ppo`, `huri`: env steps/s of the whole training loop (collection and updates, after a warm-up
-  iteration) with the `Zerith1-v0` preset of `hyperparams/huri.yml` (`--nets` overrides its networks, the
+  iteration) with the env's preset in `hyperparams/huri.yml` (`--nets` overrides its networks, the
   paper's [512, 256, 128] by default), the policy on torch's CUDA device where there is one;
   `huri/ppo`: HuRiPPO's wall time per env step relative to SB3 PPO's.
 
@@ -38,34 +39,33 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym import robot
+from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset, robot_of
 from zerith_gym.mjx import MjxPhysics, SolverSettings
 from zerith_gym.physics import RANDOMIZED_FIELDS
+from zerith_gym.robot_spec import RobotSpec
+from zerith_gym.robots import locomotion_task
 from zerith_gym.terrain import PLANE, Terrain
 
-ENV_ID = "Zerith1-v0"
 
-
-def raw_rate(num_envs: int, solver: SolverSettings, steps: int) -> float:
+def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec) -> float:
     """Control steps/s of raw MJX physics: every robot standing, default joint targets, no task."""
-    physics = MjxPhysics(Terrain(PLANE), "centroid", solver)
+    physics = MjxPhysics(Terrain(PLANE), solver, robot)
     model = physics.model
     fields = {  # the nominal model's fields, batched as the env batches them
         name: jnp.broadcast_to(jnp.asarray(getattr(model, name)), (num_envs, *getattr(model, name).shape))
         for name in RANDOMIZED_FIELDS
     }
-    qpos = jnp.broadcast_to(jnp.asarray(np.r_[0, 0, 0, 1, 0, 0, 0, robot.DEFAULT_JOINT_POS]), (num_envs, 19))
+    qpos = jnp.broadcast_to(jnp.asarray(np.r_[0, 0, 0, 1, 0, 0, 0, robot.default_joint_pos]), (num_envs, 19))
     data = jax.jit(jax.vmap(physics.reset))(fields, qpos)
-    targets = jnp.broadcast_to(jnp.asarray(robot.DEFAULT_JOINT_POS), (num_envs, 3, 12))
-    lags = jnp.zeros((num_envs, robot.DECIMATION), jnp.int32)
-    zeros3, zeros2 = jnp.zeros((num_envs, 3)), jnp.zeros((num_envs, 2))
+    targets = jnp.broadcast_to(jnp.asarray(robot.default_joint_pos), (num_envs, 3, 12))
+    lags = jnp.zeros((num_envs, robot.decimation), jnp.int32)
+    no_force = (jnp.zeros((num_envs, 3)), jnp.zeros(num_envs, jnp.int32), jnp.zeros((num_envs, 2)))
     step = jax.jit(jax.vmap(physics.control_step))
-    data, _ = step(fields, data, targets, lags, zeros3, zeros2)  # compile
+    data, _ = step(fields, data, targets, lags, *no_force)  # compile
     jax.block_until_ready(data)
     start = time.perf_counter()
     for _ in range(steps):
-        data, _ = step(fields, data, targets, lags, zeros3, zeros2)
+        data, _ = step(fields, data, targets, lags, *no_force)
     jax.block_until_ready(data)
     return steps * num_envs / (time.perf_counter() - start)
 
@@ -92,7 +92,8 @@ def build(algo: str, preset: dict, env, net: list[int], device: str):
     kwargs["policy_kwargs"] = dict(kwargs.get("policy_kwargs") or {}, net_arch=net)
     if algo == "ppo":
         kwargs["batch_size"] = env.num_envs * kwargs["n_steps"] // kwargs.pop("n_minibatches")
-        for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef"):
+        for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef", "desired_kl",
+                     "critic_learning_rate"):  # fmt: skip
             kwargs.pop(name, None)
         return PPO("MultiInputPolicy", env, seed=0, device=device, **kwargs)
     return HuRiPPO("MultiInputPolicy", env, seed=0, device=device, **kwargs)
@@ -125,6 +126,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
+    parser.add_argument("--env", default="Zerith1-v0", choices=["Zerith1-v0", "Go2Like-v0"])
     parser.add_argument("--num-envs", type=int, nargs="+", default=[4096, 16384])
     parser.add_argument("--solver", type=int, nargs=2, default=None, metavar=("ITERATIONS", "LS_ITERATIONS"))
     parser.add_argument("--iterations", type=int, default=3, help="timed training iterations")
@@ -135,12 +137,13 @@ def main() -> None:
     args = parser.parse_args()
     solver = SolverSettings(*(args.solver or (None, None)))
     device = "cuda" if torch.cuda.is_available() else "cpu"
-    preset = read_preset(ENV_ID)
-    env_kwargs = dict(preset.get("env_kwargs") or {})
+    preset = read_preset(args.env)
+    robot = robot_of(args.env)
+    env_kwargs = {**(preset.get("env_kwargs") or {}), "robot": robot}
     print(f"JAX device: {jax.devices()[0]}, torch device: {device}, solver {args.solver or 'of the MJCF'}")
     print(f"{'robots':>7} {'raw':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
     for n in args.num_envs:
-        raw = raw_rate(n, solver, args.steps)
+        raw = raw_rate(n, solver, args.steps, locomotion_task(robot).robot)
         env = env_rate(n, solver, args.steps, env_kwargs)
         row = f"{n:>7} {raw:>9.0f} {env:>9.0f}"
         if not args.skip_training:
