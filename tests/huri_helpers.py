@@ -79,16 +79,3 @@ def tiny_robust_preset(folder: Path, n_timesteps: int = 384, name: str = "tiny.y
     path = folder / name
     path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
     return path
-
-
-def load_script(relative: str):
-    """Import a script of the repository (examples/, benchmarks/) as a module."""
-    import importlib.util
-    import sys
-
-    path = ROOT / relative
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up here
-    spec.loader.exec_module(module)
-    return module
