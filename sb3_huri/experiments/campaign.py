@@ -53,7 +53,7 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
         defaults = entry.defaults
         request = RunRequest(
             run=entry.run, preset=read_preset(entry.env_id, entry.conf), method=entry.method,
-            seed=entry.seed, until=entry.steps, env_id=entry.env_id,
+            seed=entry.seed, until=entry.steps, env_id=entry.env_id, hyperparams=entry.hyperparams,
         )  # fmt: skip
         rows = RobustnessSchedule(
             defaults.robustness_every,
@@ -195,7 +195,7 @@ def status_table(queue: Path) -> str:
     training hours left at that speed, and state."""
     import json
 
-    header = f"{'entry':24} {'protocol':9} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
+    header = f"{'entry':24} {'protocol':10} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     for entry in load_queue(queue):
         state_file = entry.run / entry.env_id / "state.json"
@@ -206,7 +206,7 @@ def status_table(queue: Path) -> str:
             f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
         )
         lines.append(
-            f"{entry.name:24} {entry.protocol:9} {entry.method:14} {entry.seed:4} "
+            f"{entry.name:24} {entry.protocol:10} {entry.method:14} {entry.seed:4} "
             f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
         )
     return "\n".join(lines)
