@@ -191,6 +191,23 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
     )
 
 
+def test_an_entry_stopped_at_the_wall_time_limit_is_not_counted_as_a_failure(tmp_path):
+    """The child ends unfinished at the limit (exit 1); the campaign says it stopped, not that it failed."""
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("long", "long/Zerith1-v0_1", 10**6)])
+    command = [sys.executable, "-m", "sb3_huri.experiments", "campaign", "--queue", str(queue)]
+    result = subprocess.run(
+        [*command, "--max-wall-minutes", "0.05"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=os.environ.copy(),
+    )
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "long stopped at the wall-time limit" in result.stdout, result.stdout
+    assert "ended unfinished" not in result.stdout and "started again" not in result.stdout
+
+
 def test_a_quadruped_entry_trains_go2like_and_is_evaluated_on_its_own_cases(tmp_path):
     """A `quadruped` entry: the run folder holds `Go2Like-v0` files, no Table-1 robustness rows (they are
     Zerith-1's), and a final evaluation on the quadruped's cases (plane walking, Table 8's platforms)."""
