@@ -84,7 +84,7 @@ def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int
         for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef"):
             kwargs.pop(name, None)
         return PPO("MultiInputPolicy", env, seed=seed, device="cpu", **kwargs)
-    return HuRiPPO("MultiInputPolicy", env, variant=algo, seed=seed, device="cpu", **kwargs)
+    return HuRiPPO("MultiInputPolicy", env, method=algo, seed=seed, device="cpu", **kwargs)
 
 
 def train_rate(
@@ -115,7 +115,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, nargs="*", default=None, help="default: the preset's")
     parser.add_argument("--nets", nargs="*", default=[None], help="e.g. 512,256,128 (default: the preset's)")
-    parser.add_argument("--algos", nargs="*", default=["ppo", "huri"], help="ppo or HuRiPPO variants")
+    parser.add_argument("--algos", nargs="*", default=["ppo", "huri"], help="ppo (SB3 PPO) or methods")
     parser.add_argument("--vec", choices=["batched", "dummy"], default="batched")
     parser.add_argument("--workers", type=int, nargs="*", default=[None], help="env workers (default: auto)")
     parser.add_argument("--physics-threads", type=int, nargs="*", default=[1], help="env physics threads")
