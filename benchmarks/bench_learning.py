@@ -1,12 +1,12 @@
-"""Learning sanity check: HuRiPPO (``huri``) against PPO (``baseline``) at the same budget, several seeds.
+"""Learning sanity check: HuRiPPO (``huri``) against PPO (``huri-baseline``), same budget, several seeds.
 
 Both algorithms share every setting below (networks, rollout and update sizes, learning rate,
-``VecNormalize`` with observation and reward normalization); only ``variant`` differs. ``baseline`` is
+``VecNormalize`` with observation and reward normalization); only ``method`` differs. ``huri-baseline`` is
 PPO with the same asymmetric networks and a scalar critic (its rollouts equal SB3 PPO's: see the tests).
 Each run is scored by a deterministic evaluation of the final policy (10 episodes, unnormalized reward).
 
     nice -n 10 python benchmarks/bench_learning.py                     # Pendulum-v1 and HalfCheetah-v5
-    python benchmarks/bench_learning.py --envs Pendulum-v1 --seeds 0 1 2 --variants huri baseline cvar0.5
+    python benchmarks/bench_learning.py --envs Pendulum-v1 --methods huri huri-baseline huri-cvar0.5
 """
 
 import argparse
@@ -22,7 +22,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_huri import HuRiPPO
 
-# Settings shared by all variants, per environment, sized for a small CPU budget.
+# Settings shared by all methods, per environment, sized for a small CPU budget.
 SETTINGS = {
     "Pendulum-v1": dict(
         timesteps=100_000,
@@ -39,10 +39,10 @@ SETTINGS = {
 }
 
 
-def run(env_id: str, variant: str, seed: int, timesteps: int | None) -> dict:
+def run(env_id: str, method: str, seed: int, timesteps: int | None) -> dict:
     settings = SETTINGS[env_id]
     env = VecNormalize(make_vec_env(env_id, n_envs=settings["n_envs"], seed=seed))
-    model = HuRiPPO("MlpPolicy", env, variant=variant, seed=seed, device="cpu", **settings["hyperparams"])
+    model = HuRiPPO("MlpPolicy", env, method=method, seed=seed, device="cpu", **settings["hyperparams"])
     start = time.perf_counter()
     model.learn(timesteps or settings["timesteps"])
     train_time = time.perf_counter() - start
@@ -53,7 +53,7 @@ def run(env_id: str, variant: str, seed: int, timesteps: int | None) -> dict:
     eval_env.obs_rms = env.obs_rms
     mean_return, _ = evaluate_policy(model, eval_env, n_eval_episodes=10, deterministic=True)
     return dict(
-        env=env_id, variant=variant, seed=seed, final_return=float(mean_return), train_time_s=train_time
+        env=env_id, method=method, seed=seed, final_return=float(mean_return), train_time_s=train_time
     )
 
 
@@ -62,7 +62,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--envs", nargs="+", default=list(SETTINGS))
-    parser.add_argument("--variants", nargs="+", default=["baseline", "huri"])
+    parser.add_argument("--methods", nargs="+", default=["huri-baseline", "huri"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--timesteps", type=int, default=None, help="override the per-env budget")
     parser.add_argument("--output", default=None, help="write the per-run results as JSON lines here")
@@ -72,26 +72,26 @@ def main() -> None:
     results = []
     for env_id in args.envs:
         for seed in args.seeds:
-            for variant in args.variants:
-                result = run(env_id, variant, seed, args.timesteps)
+            for method in args.methods:
+                result = run(env_id, method, seed, args.timesteps)
                 results.append(result)
                 print(json.dumps(result), flush=True)
                 if args.output:
                     with open(args.output, "a") as file:
                         file.write(json.dumps(result) + "\n")
 
-    print("\n| env | variant | steps | final return, mean ± std over seeds | per seed | train time / run |")
+    print("\n| env | method | steps | final return, mean ± std over seeds | per seed | train time / run |")
     print("|---|---|---|---|---|---|")
     for env_id in args.envs:
-        for variant in args.variants:
-            runs = [r for r in results if r["env"] == env_id and r["variant"] == variant]
+        for method in args.methods:
+            runs = [r for r in results if r["env"] == env_id and r["method"] == method]
             returns = [r["final_return"] for r in runs]
             spread = statistics.stdev(returns) if len(returns) > 1 else float("nan")
             steps = args.timesteps or SETTINGS[env_id]["timesteps"]
             per_seed = ", ".join(f"{value:.0f}" for value in returns)
             minutes = np.mean([r["train_time_s"] for r in runs]) / 60
             print(
-                f"| {env_id} | {variant} | {steps} | {np.mean(returns):.1f} ± {spread:.1f} | {per_seed} | "
+                f"| {env_id} | {method} | {steps} | {np.mean(returns):.1f} ± {spread:.1f} | {per_seed} | "
                 f"{minutes:.1f} min |"
             )
 

@@ -39,7 +39,7 @@ def _time_learn(algo: str, env_id: str, args: argparse.Namespace, seed: int) -> 
     if algo == "ppo":
         model = PPO(HuRiPolicy, env, policy_kwargs=dict(n_quantiles=1), ent_coef=0.01, vf_coef=1.0, **common)
     else:
-        model = HuRiPPO("MlpPolicy", env, variant=algo, **common)
+        model = HuRiPPO("MlpPolicy", env, method=algo, **common)
     start, start_cpu = time.perf_counter(), time.process_time()
     model.learn(args.timesteps)
     elapsed, elapsed_cpu = time.perf_counter() - start, time.process_time() - start_cpu
@@ -52,7 +52,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--envs", nargs="+", default=["Pendulum-v1", "Zerith1-v0"])
-    parser.add_argument("--variants", nargs="+", default=["huri", "baseline"])
+    parser.add_argument("--methods", nargs="+", default=["huri", "huri-baseline"])
     parser.add_argument("--timesteps", type=int, default=16384)
     parser.add_argument("--n-envs", type=int, default=8)
     parser.add_argument("--n-steps", type=int, default=256)
@@ -77,7 +77,7 @@ def main() -> None:
         except (gym.error.Error, ImportError) as error:
             print(f"| {env_id} | skipped: {error} | | | | |")
             continue
-        algos = ["ppo", *args.variants]
+        algos = ["ppo", *args.methods]
         times: dict[str, list[tuple[float, float]]] = {algo: [] for algo in algos}
         for repeat in range(args.repeats):
             for algo in algos:
@@ -87,7 +87,7 @@ def main() -> None:
         for algo in algos:
             wall = statistics.median(wall for wall, _ in times[algo])
             cpu = statistics.median(cpu for _, cpu in times[algo])
-            name = "SB3 PPO + HuRiPolicy(n_quantiles=1)" if algo == "ppo" else f"HuRiPPO variant={algo}"
+            name = "SB3 PPO + HuRiPolicy(n_quantiles=1)" if algo == "ppo" else f"HuRiPPO method={algo}"
             ratios = f"{wall:.2f} | {wall / wall_ppo:.2f}x | {cpu:.2f} | {cpu / cpu_ppo:.2f}x"
             print(f"| {env_id} | {name} | {ratios} |", flush=True)
 

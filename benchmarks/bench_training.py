@@ -18,6 +18,8 @@ Both algorithms run with the preset's callbacks (RL Zoo reads them the same way)
     python benchmarks/bench_training.py --num-envs 32 64 --iterations 5
     python benchmarks/bench_training.py --workers 0 --physics-threads 1 2   # in-process env, for reference
     python benchmarks/bench_training.py --num-envs 256 1024 --threads 4     # a 16-core machine
+    python benchmarks/bench_training.py --conf-file hyperparams/huri_robust.yml --num-envs 32 256 \
+        --samples-per-update 16384 --workers 0 --algos huri-baseline huri   # one core, same update size
 
 `--threads` sets torch's threads at the start (default 1; the preset's `UpdateThreads` then switches
 them by phase). The machine's other load changes absolute rates; the ratios are what to compare.
@@ -82,7 +84,7 @@ def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int
         for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef"):
             kwargs.pop(name, None)
         return PPO("MultiInputPolicy", env, seed=seed, device="cpu", **kwargs)
-    return HuRiPPO("MultiInputPolicy", env, variant=algo, seed=seed, device="cpu", **kwargs)
+    return HuRiPPO("MultiInputPolicy", env, method=algo, seed=seed, device="cpu", **kwargs)
 
 
 def train_rate(
@@ -113,7 +115,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, nargs="*", default=None, help="default: the preset's")
     parser.add_argument("--nets", nargs="*", default=[None], help="e.g. 512,256,128 (default: the preset's)")
-    parser.add_argument("--algos", nargs="*", default=["ppo", "huri"], help="ppo or HuRiPPO variants")
+    parser.add_argument("--algos", nargs="*", default=["ppo", "huri"], help="ppo (SB3 PPO) or methods")
     parser.add_argument("--vec", choices=["batched", "dummy"], default="batched")
     parser.add_argument("--workers", type=int, nargs="*", default=[None], help="env workers (default: auto)")
     parser.add_argument("--physics-threads", type=int, nargs="*", default=[1], help="env physics threads")
@@ -122,6 +124,12 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch threads at the start")
     parser.add_argument("--no-callbacks", action="store_true", help="without the preset's callbacks")
     parser.add_argument("--conf-file", default=None, help="hyperparameter file (default: the packaged one)")
+    parser.add_argument(
+        "--samples-per-update",
+        type=int,
+        default=None,
+        help="n_steps = this / robots: every --num-envs updates on as many samples (default: the preset's)",
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     preset = read_preset(ENV_ID, args.conf_file)
@@ -136,6 +144,8 @@ def main() -> None:
         f"raw physics ({cores} thr)  ratio  vs PPO"
     )
     for num_envs in args.num_envs or [int(preset["n_envs"])]:
+        if args.samples_per_update:
+            preset = dict(preset, n_steps=args.samples_per_update // num_envs)
         for net_text in args.nets:
             net = None if net_text is None else [int(width) for width in net_text.split(",")]
             for workers in args.workers:

@@ -40,7 +40,7 @@ from zerith_gym.scenarios import SCENARIOS
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = (
     ROOT / "trained_agents" / "huri" / f"{ENV_ID}_1",
-    ROOT / "trained_agents" / "ppo" / f"{ENV_ID}_1",
+    ROOT / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1",
 )
 DEFAULT_CASES = (
     "nominal@0.5",

@@ -521,7 +521,8 @@ def main(argv: list[str] | None = None) -> None:
         command = tuple(args.command)
         if not args.json:
             meta = policy.metadata
-            agent = f"{meta.get('algorithm')} ({meta.get('variant')}) for {meta.get('env_id')}"
+            method = meta.get("method", meta.get("variant"))  # earlier exports name it `variant`
+            agent = f"{meta.get('algorithm')} ({method}) for {meta.get('env_id')}"
             print(f"{args.policy}: {agent}; {settings.describe()}; command {command}")
         for index in range(args.runs):
             video = args.video if index == 0 else None

@@ -1,7 +1,7 @@
 """Train HuRi on Pendulum-v1, watch its risk parameter, evaluate, save and reload.
 
     python examples/huri_pendulum.py                   # about a minute on one CPU core
-    python examples/huri_pendulum.py --variant baseline --timesteps 50000
+    python examples/huri_pendulum.py --method huri-baseline --timesteps 50000
 
 HuRi's IQR thresholds are in units of the return, so rewards are normalized (as in the paper) with
 ``VecNormalize``; evaluation uses the raw reward.
@@ -16,14 +16,14 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecNormalize
 
-from sb3_huri import VARIANTS, HuRiPPO
+from sb3_huri import METHODS, HuRiPPO
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--variant", default="huri", choices=list(VARIANTS))
+    parser.add_argument("--method", default="huri", choices=list(METHODS))
     parser.add_argument("--timesteps", type=int, default=100_000)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -35,7 +35,7 @@ def main() -> None:
     model = HuRiPPO(
         "MlpPolicy",
         env,
-        variant=args.variant,
+        method=args.method,
         n_steps=256,
         gamma=0.9,
         learning_rate=1e-3,
@@ -58,7 +58,7 @@ def main() -> None:
     )
     eval_env.obs_rms = env.obs_rms
     mean_return, std_return = evaluate_policy(model, eval_env, n_eval_episodes=10, deterministic=True)
-    print(f"{args.variant}: return {mean_return:.1f} +- {std_return:.1f} over 10 episodes")
+    print(f"{args.method}: return {mean_return:.1f} +- {std_return:.1f} over 10 episodes")
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "huri_pendulum.zip"

@@ -1,13 +1,14 @@
 """Watch trained Zerith-1 agents walk, record them, and print their survival and velocity tracking.
 
     python examples/watch_zerith.py                                        # both shipped agents, 0.5 m/s
-    python examples/watch_zerith.py trained_agents/ppo/Zerith1-v0_1 --vx 1.0
+    python examples/watch_zerith.py trained_agents/huri-baseline/Zerith1-v0_1 --vx 1.0
     python examples/watch_zerith.py --scenario sudden-centroid --episodes 5
     MUJOCO_GL=egl python examples/watch_zerith.py --video videos/       # headless: an mp4 per episode
     python examples/watch_zerith.py --render                               # a MuJoCo window
 
 By default both shipped agents run, one after the other: HuRi (`trained_agents/huri/Zerith1-v0_1`) and the
-PPO baseline (`trained_agents/ppo/Zerith1-v0_1`); both walk at the 0.5 m/s command (docs/training.md).
+PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`); both walk at the 0.5 m/s command
+(docs/training.md).
 An agent is a run folder in RL Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`):
 `Zerith1-v0.zip` and `Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes
 nothing, so its episodes are all the same). Each episode prints its length, whether the robot fell, its
@@ -30,7 +31,7 @@ from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slice
 
 ENV_ID = "Zerith1-v0"
 SHIPPED = Path(__file__).resolve().parent.parent / "trained_agents"
-DEFAULT_AGENTS = [SHIPPED / "huri" / f"{ENV_ID}_1", SHIPPED / "ppo" / f"{ENV_ID}_1"]
+DEFAULT_AGENTS = [SHIPPED / "huri" / f"{ENV_ID}_1", SHIPPED / "huri-baseline" / f"{ENV_ID}_1"]
 _BASE_VELOCITY = layout_slices(CRITIC_LAYOUT)["base_linear_velocity"]
 
 
@@ -78,7 +79,7 @@ def watch(agent: Path, command: tuple[float, float, float] | None, args: argpars
         )
     model, normalizer = load_run(agent, ENV_ID)
 
-    print(f"agent {agent} ({model.variant}), scenario {args.scenario}")
+    print(f"agent {agent} ({model.method}), scenario {args.scenario}")
     survived = 0
     for episode in range(args.episodes):
         obs, info = env.reset(seed=args.seed + episode)

@@ -48,11 +48,12 @@ def test_the_projects_queue_is_valid_and_names_its_entries_once():
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"protocol": "lab"}, "protocol 'lab' is not one of robust, paper, terrain"),
+        ({"protocol": "lab"}, "protocol 'lab' is not one of robust, robust-256, paper, terrain"),
         ({"method": "sac"}, "unknown method 'sac'"),
         ({"conf": "missing.yml"}, "missing.yml not found"),
         ({"steps": "many"}, "seed and steps must be numbers"),
         ({"budget": 3}, "unknown budget"),
+        ({"hyperparams": [256]}, "hyperparams must map preset names to values"),
     ],
 )
 def test_a_bad_queue_entry_is_a_clear_error(tmp_path, change, message):
@@ -149,7 +150,10 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
     entries = [
         {**_entry("broken", "broken/Zerith1-v0_1", 128), "conf": "broken.yml"},
         _entry("huri-s0", "huri/Zerith1-v0_1", 128),
-        _entry("ppo-s0", "ppo/Zerith1-v0_1", 128, "huri-baseline"),
+        {
+            **_entry("ppo-s0", "ppo/Zerith1-v0_1", 128, "huri-baseline"),
+            "hyperparams": {"n_envs": 8, "n_steps": 8},
+        },
     ]
     queue = _queue(tmp_path, entries, **defaults)
     command = [
@@ -175,12 +179,33 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
         with (run / "curve.csv").open() as file:
             assert [int(r["timesteps"]) for r in csv.DictReader(file)] == [64, 128]
     assert [e.state() for e in load_queue(queue)] == ["new", "done", "done"]
+    config = dict(
+        yaml.safe_load((tmp_path / "ppo" / "Zerith1-v0_1" / "Zerith1-v0" / "config.yml").read_text())
+    )
+    assert (config["n_envs"], config["n_steps"]) == (8, 8)  # the entry's hyperparams over its preset's 4 x 16
     again = subprocess.run(command, capture_output=True, text=True, timeout=120, env=os.environ.copy())
     assert (
         again.returncode == 1
         and "started huri-s0" not in again.stdout
         and "started ppo-s0" not in again.stdout
     )
+
+
+def test_an_entry_stopped_at_the_wall_time_limit_is_not_counted_as_a_failure(tmp_path):
+    """The child ends unfinished at the limit (exit 1); the campaign says it stopped, not that it failed."""
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("long", "long/Zerith1-v0_1", 10**6)])
+    command = [sys.executable, "-m", "sb3_huri.experiments", "campaign", "--queue", str(queue)]
+    result = subprocess.run(
+        [*command, "--max-wall-minutes", "0.05"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=os.environ.copy(),
+    )
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "long stopped at the wall-time limit" in result.stdout, result.stdout
+    assert "ended unfinished" not in result.stdout and "started again" not in result.stdout
 
 
 def test_a_quadruped_entry_trains_go2like_and_is_evaluated_on_its_own_cases(tmp_path):

@@ -116,7 +116,7 @@ def test_local_grid_trains_and_evaluates_every_run_in_rl_zoo_layout(local_grid) 
             assert status.resumed_from == [] and status.eval_done == len(PROTOCOL)
             model, normalizer = load_run(folder, ENV)  # RL Zoo's layout, as `rl_zoo3 enjoy` reads it
             assert model.num_timesteps == 256 and normalizer is not None
-            assert model.variant == {"huri": "huri", "huri-baseline": "baseline"}[method]
+            assert model.method == method
             assert model.seed == seed
             evaluation = json.loads((folder / "evaluation.json").read_text())
             assert sorted(evaluation["cases"]) == sorted(PROTOCOL)

@@ -26,7 +26,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import sb3_huri
 import zerith_gym  # noqa: F401  (registers Zerith1-v0)
-from sb3_huri import VARIANTS, HuRiPPO
+from sb3_huri import METHODS, HuRiPPO
 from sb3_huri.export import FORMAT, actor_of, check_export, export_actor
 from sb3_huri.export.__main__ import main
 from sb3_huri.zoo.runs import load_run
@@ -36,7 +36,7 @@ from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
-RUNS = {name: REPO / "trained_agents" / name / f"{ENV_ID}_1" for name in ("huri", "ppo")}
+RUNS = {name: REPO / "trained_agents" / name / f"{ENV_ID}_1" for name in ("huri", "huri-baseline")}
 RUNNER = REPO / "examples" / "deploy_onnx.py"
 
 
@@ -70,7 +70,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return paths
 
 
-@pytest.mark.parametrize(("name", "algorithm"), [("huri", HuRiPPO), ("ppo", PPO)])
+@pytest.mark.parametrize(("name", "algorithm"), [("huri", HuRiPPO), ("huri-baseline", PPO)])
 def test_onnx_actions_equal_sb3_predict_along_real_episodes(
     exported: dict[str, Path], name: str, algorithm: type
 ) -> None:
@@ -106,7 +106,7 @@ def test_the_file_carries_what_a_controller_needs(exported: dict[str, Path], nam
     meta = metadata(exported[name])
     assert meta["format"] == FORMAT and meta["env_id"] == ENV_ID
     assert meta["package_version"] == sb3_huri.__version__
-    assert meta["variant"] == {"huri": "huri", "ppo": "baseline"}[name]
+    assert meta["method"] == name and "variant" not in meta
     assert [(b["name"], b["size"]) for b in meta["observation_layout"]] == list(POLICY_LAYOUT)
     assert [b["start"] for b in meta["observation_layout"]] == list(
         np.cumsum([0] + [s for _, s in POLICY_LAYOUT])[:-1]
@@ -127,8 +127,8 @@ def test_the_file_carries_what_a_controller_needs(exported: dict[str, Path], nam
     np.testing.assert_allclose(mean, stats.obs_rms["policy"].mean, rtol=1e-6)
 
 
-@pytest.mark.parametrize("variant", sorted(VARIANTS))
-def test_every_method_exports(tmp_path: Path, variant: str) -> None:
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_every_method_exports(tmp_path: Path, method: str) -> None:
     """Each method of the paper's comparison, untrained, with made-up normalization statistics."""
     venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]))
     rng = np.random.default_rng(1)
@@ -138,15 +138,24 @@ def test_every_method_exports(tmp_path: Path, variant: str) -> None:
     model = HuRiPPO(
         "MultiInputPolicy",
         venv,
-        variant=variant,
+        method=method,
         n_steps=32,
         policy_kwargs=dict(net_arch=[32, 16]),
         device="cpu",
     )
-    output = tmp_path / f"{variant}.onnx"
+    output = tmp_path / f"{method}.onnx"
     export_actor(model, venv, ENV_ID, output)
-    assert metadata(output)["variant"] == variant
+    assert metadata(output)["method"] == method
     assert check_export(output, model, venv) < 1e-5
+
+
+def test_a_checkpoint_saved_with_a_variant_and_loaded_by_sb3s_ppo_exports_its_method(tmp_path: Path) -> None:
+    """SB3's PPO loads the shipped baseline with what its zip holds, `variant="baseline"` (its name then)."""
+    model = PPO.load(RUNS["huri-baseline"] / f"{ENV_ID}.zip", device="cpu")
+    assert model.variant == "baseline"
+    output = tmp_path / "baseline.onnx"
+    export_actor(model, None, ENV_ID, output)
+    assert metadata(output)["method"] == "huri-baseline"
 
 
 def test_the_quadruped_exports_with_its_own_layout_joints_and_gains(tmp_path: Path) -> None:
@@ -187,7 +196,7 @@ def test_plain_sb3_ppo_with_a_box_observation_and_tanh_layers(tmp_path: Path) ->
     export_actor(loaded, normalizer, ENV_ID, output)
     assert actor_of(loaded.policy).key is None
     assert check_export(output, loaded, normalizer) < 1e-5
-    assert metadata(output)["observation_key"] is None
+    assert metadata(output)["observation_key"] is None and metadata(output)["method"] is None
 
 
 def test_squashed_gsde_actor_rescaled_to_the_action_bounds(tmp_path: Path) -> None:
@@ -311,7 +320,7 @@ def test_runner_refuses_files_it_cannot_use(tmp_path: Path, exported: dict[str, 
     model = PPO("MlpPolicy", "Pendulum-v1", policy_kwargs=dict(net_arch=[8]), device="cpu")
     export_actor(model, None, "Pendulum-v1", other)
     foreign = tmp_path / "foreign.onnx"
-    proto = onnx.load(str(exported["ppo"]))
+    proto = onnx.load(str(exported["huri-baseline"]))
     del proto.metadata_props[:]
     onnx.save(proto, str(foreign))
     runner = load_runner()
@@ -326,7 +335,11 @@ def test_runner_refuses_files_it_cannot_use(tmp_path: Path, exported: dict[str, 
             runner.OnnxPolicy(path)
     with pytest.raises(runner.DeployError, match="must divide the control period"):
         runner.run(
-            runner.OnnxPolicy(exported["ppo"]), runner.default_mjcf(), runner.Physics(0.003), (0, 0, 0), 1.0
+            runner.OnnxPolicy(exported["huri-baseline"]),
+            runner.default_mjcf(),
+            runner.Physics(0.003),
+            (0, 0, 0),
+            1.0,
         )
     result = run_without_torch(tmp_path, str(not_onnx))
     assert result.returncode == 2 and "error: " in result.stderr and "Traceback" not in result.stderr

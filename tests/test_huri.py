@@ -12,7 +12,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from sb3_huri import VARIANTS, HuRiPolicy, HuRiPPO
+from sb3_huri import METHODS, HuRiPolicy, HuRiPPO
 from sb3_huri.huri.risk import WANG_LOG_KEYS
 
 # Most tests learn on raw rewards on purpose (small, exact checks); the warning has its own test.
@@ -22,16 +22,16 @@ pytestmark = pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarn
 # --- learning --------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("variant", list(VARIANTS))
-def test_every_variant_learns_on_pendulum_with_several_envs(variant):
+@pytest.mark.parametrize("method", list(METHODS))
+def test_every_method_learns_on_pendulum_with_several_envs(method):
     env = make_vec_env("Pendulum-v1", n_envs=2, seed=0, env_kwargs=dict(max_episode_steps=40))
-    model = HuRiPPO("MlpPolicy", env, variant=variant, seed=0, **SMALL)
+    model = HuRiPPO("MlpPolicy", env, method=method, seed=0, **SMALL)
     before = model.policy.parameters_to_vector()
     model.learn(128)
     assert model.num_timesteps == 128
     assert not np.allclose(model.policy.parameters_to_vector(), before)
-    assert (model.policy.rnd is not None) == VARIANTS[variant].use_rnd
-    assert model.policy.n_quantiles == (64 if VARIANTS[variant].distributional else 1)
+    assert (model.policy.rnd is not None) == METHODS[method].use_rnd
+    assert model.policy.n_quantiles == (64 if METHODS[method].distributional else 1)
     assert model.rollout_buffer.has_time_outs
 
 
@@ -98,9 +98,9 @@ def test_sb3_ppo_can_use_the_asymmetric_policy_with_a_scalar_critic():
     assert model.policy.mlp_extractor.actor_dim == 3
 
 
-@pytest.mark.parametrize("variant", ["huri-no-rnd", "huri", "cvar0.5", "baseline"])
-def test_assess_risk_reports_sorted_atoms_and_the_variants_risk(variant):
-    model = HuRiPPO("MlpPolicy", dict_env(n_envs=1), variant=variant, seed=0, **SMALL)
+@pytest.mark.parametrize("method", ["huri-no-rnd", "huri", "huri-cvar0.5", "huri-baseline"])
+def test_assess_risk_reports_sorted_atoms_and_the_methods_risk(method):
+    model = HuRiPPO("MlpPolicy", dict_env(n_envs=1), method=method, seed=0, **SMALL)
     model.learn(32)
     first_obs = {key: obs[0] for key, obs in model.rollout_buffer.observations.items()}
     assessment = model.assess_risk(first_obs)
@@ -109,12 +109,12 @@ def test_assess_risk_reports_sorted_atoms_and_the_variants_risk(variant):
     assert all(np.ndim(field) == 0 for field in assessment[1:])
     assert (np.diff(assessment.atoms) >= 0).all()
     assert assessment.atoms.min() <= assessment.value <= assessment.atoms.max()
-    if variant == "huri-no-rnd":
+    if method == "huri-no-rnd":
         assert assessment.risk in (-1.0, 0.0, 1.0)
-    elif variant == "huri":
+    elif method == "huri":
         iqr_level = assessment.risk - np.tanh(assessment.rnd_error)
         assert assessment.rnd_error > 0 and min(abs(iqr_level - level) for level in (-1, 0, 1)) < 1e-5
-    elif variant == "cvar0.5":
+    elif method == "huri-cvar0.5":
         assert assessment.risk == 0.5
         assert assessment.value == pytest.approx(assessment.atoms[:32].mean(), rel=1e-5)
 
@@ -209,7 +209,7 @@ def test_progress_bar_and_tensorboard(tmp_path):
 
 def test_save_load_round_trip_keeps_everything_and_learning_continues(tmp_path):
     env = dict_env(max_episode_steps=20)
-    model = HuRiPPO("MultiInputPolicy", env, variant="huri", seed=0, **SMALL).learn(64)
+    model = HuRiPPO("MultiInputPolicy", env, method="huri", seed=0, **SMALL).learn(64)
     observations = env.reset()
     actions, _ = model.predict(observations, deterministic=True)
     model.save(tmp_path / "model.zip")
@@ -221,7 +221,7 @@ def test_save_load_round_trip_keeps_everything_and_learning_continues(tmp_path):
     state_dicts_equal(model.policy.optimizer.state_dict(), loaded.policy.optimizer.state_dict())
     state_dicts_equal(model.policy.rnd.optimizer.state_dict(), loaded.policy.rnd.optimizer.state_dict())
     np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0], actions)
-    assert (loaded.variant, loaded.n_quantiles, loaded.use_rnd, loaded.batch_size) == ("huri", 64, True, 16)
+    assert (loaded.method, loaded.n_quantiles, loaded.use_rnd, loaded.batch_size) == ("huri", 64, True, 16)
 
     before = loaded.policy.parameters_to_vector()
     rnd_before = loaded.policy.rnd.predictor[0].weight.detach().clone()
@@ -298,19 +298,19 @@ def test_cuda_device():
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [
-        (dict(variant="huri-lite"), "variant"),
+        (dict(method="huri-lite"), "method"),
         (dict(n_quantiles=1), "n_quantiles"),
         (dict(iqr_thresholds=(0.7, 0.3)), "iqr_thresholds"),
         (dict(sr_lambda=1.5), "sr_lambda"),
         (dict(distortion="exponential"), "distortion"),
         (dict(cvar_alpha=0.0), "cvar_alpha"),
-        (dict(cvar_alpha=1.2, variant="cvar0.5"), "cvar_alpha"),
+        (dict(cvar_alpha=1.2, method="huri-cvar0.5"), "cvar_alpha"),
         (dict(batch_size=1000), "batch_size"),
         (dict(n_minibatches=200), "n_minibatches"),
         (dict(gamma=1.5), "gamma"),
-        (dict(variant="baseline", use_rnd=True), "use_rnd"),
+        (dict(method="huri-baseline", use_rnd=True), "use_rnd"),
         (dict(n_quantiles=16, policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
-        (dict(variant="baseline", policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
+        (dict(method="huri-baseline", policy_kwargs=dict(n_quantiles=8)), "n_quantiles"),
         (dict(rnd_kwargs=dict(output_dim=8), policy_kwargs=dict(rnd_kwargs={})), "rnd_kwargs"),
         (dict(expectation_loss="self"), "expectation_loss"),
         (dict(desired_kl=0.0), "desired_kl"),

@@ -35,13 +35,13 @@ def test_policy_kwargs_of_a_model_rebuild_the_same_networks():
     again = HuRiPPO("MlpPolicy", env, n_steps=32, policy_kwargs=model.policy_kwargs)
     assert again.n_quantiles == 16 and again.rnd_kwargs == model.rnd_kwargs
     assert architecture(again) == architecture(model)
-    # The same values passed both ways agree; the carried RND settings do not switch RND on for a variant
-    # without it, and a scalar-critic variant refuses a quantile critic.
+    # The same values passed both ways agree; the carried RND settings do not switch RND on for a method
+    # without it, and a scalar-critic method refuses a quantile critic.
     HuRiPPO("MlpPolicy", env, n_quantiles=16, policy_kwargs=model.policy_kwargs, **{"n_steps": 32})
-    no_rnd = HuRiPPO("MlpPolicy", env, variant="huri-no-rnd", n_steps=32, policy_kwargs=model.policy_kwargs)
+    no_rnd = HuRiPPO("MlpPolicy", env, method="huri-no-rnd", n_steps=32, policy_kwargs=model.policy_kwargs)
     assert no_rnd.policy.rnd is None and no_rnd.policy_kwargs["rnd_kwargs"] is None
     with pytest.raises(ValueError, match="n_quantiles"):
-        HuRiPPO("MlpPolicy", env, variant="baseline", n_steps=32, policy_kwargs=model.policy_kwargs)
+        HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=32, policy_kwargs=model.policy_kwargs)
 
 
 @pytest.mark.parametrize("which", ["saved", "network options only"])
@@ -74,16 +74,16 @@ def test_learning_without_reward_normalization_warns_how_to_normalize():
         model.learn(64)
 
 
-@pytest.mark.parametrize("setting", ["VecNormalize", "NormalizeReward", "baseline", "huri-no-iqr"])
+@pytest.mark.parametrize("setting", ["VecNormalize", "NormalizeReward", "huri-baseline", "huri-no-iqr"])
 def test_no_warning_with_normalized_rewards_or_without_iqr_thresholds(setting):
-    variant = setting if setting in ("baseline", "huri-no-iqr") else "huri"
+    method = setting if setting in ("huri-baseline", "huri-no-iqr") else "huri"
     if setting == "VecNormalize":
         env = VecNormalize(dict_env(), norm_obs=False, norm_reward=True)
     elif setting == "NormalizeReward":
         env = make_vec_env("Pendulum-v1", n_envs=2, seed=0, wrapper_class=gym.wrappers.NormalizeReward)
     else:
         env = dict_env()
-    model = HuRiPPO("MlpPolicy", env, variant=variant, **SMALL)
+    model = HuRiPPO("MlpPolicy", env, method=method, **SMALL)
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnnormalizedRewardWarning)
         model.learn(64)
@@ -251,7 +251,7 @@ def test_rnd_kwargs_reach_the_rnd_module():
     assert [layer.out_features for layer in rnd.target if isinstance(layer, th.nn.Linear)] == [8, 3]
     assert [layer.out_features for layer in rnd.predictor if isinstance(layer, th.nn.Linear)] == [4, 3]
     assert rnd.optimizer.param_groups[0]["lr"] == 0.5 and rnd.normalize_error
-    assert HuRiPPO("MlpPolicy", dict_env(), variant="huri-no-rnd", **SMALL).rnd_kwargs is None
+    assert HuRiPPO("MlpPolicy", dict_env(), method="huri-no-rnd", **SMALL).rnd_kwargs is None
 
 
 def test_beta_rnd_is_material_on_the_first_rollouts_and_falls_as_states_become_familiar():

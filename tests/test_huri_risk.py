@@ -1,7 +1,9 @@
 """HuRiPPO's risk model: built once from the flat arguments, checked in one place, computing the risk level,
 logged under names true for Wang and CVaR, and rebuilt exactly when a model is loaded."""
 
+import json
 import math
+import zipfile
 
 import numpy as np
 import pytest
@@ -9,24 +11,26 @@ import torch as th
 from huri_helpers import ROOT, SMALL, KeyRecorder, dict_env, state_dicts_equal
 from stable_baselines3.common.logger import Logger
 
-from sb3_huri import VARIANTS, HuRiPPO
+from sb3_huri import METHODS, HuRiPPO
+from sb3_huri.huri import method_of_saved
 from sb3_huri.huri.risk import WANG_LOG_KEYS, RiskModel, RiskReading
+from sb3_huri.zoo import method_class
 
 pytestmark = pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
 
 
-def risk_of(variant: str = "huri", **arguments) -> RiskModel:
-    """The risk model of ``HuRiPPO(variant=variant, **arguments)`` (HuRiPPO's defaults for the others)."""
-    return HuRiPPO("MlpPolicy", None, variant=variant, _init_setup_model=False, **arguments).risk_model
+def risk_of(method: str = "huri", **arguments) -> RiskModel:
+    """The risk model of ``HuRiPPO(method=method, **arguments)`` (HuRiPPO's defaults for the others)."""
+    return HuRiPPO("MlpPolicy", None, method=method, _init_setup_model=False, **arguments).risk_model
 
 
 # --- building and checking --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("variant", list(VARIANTS))
-def test_the_defaults_take_the_variants_preset_and_the_distortions_levels(variant):
-    risk = risk_of(variant)
-    preset = VARIANTS[variant]
+@pytest.mark.parametrize("method", list(METHODS))
+def test_the_defaults_take_the_methods_preset_and_the_distortions_levels(method):
+    risk = risk_of(method)
+    preset = METHODS[method]
     assert (risk.distributional, risk.distortion, risk.use_iqr, risk.use_rnd) == (
         preset.distributional,
         preset.distortion,
@@ -53,10 +57,11 @@ def test_arguments_override_the_preset_and_settings_are_stored_as_floats_and_tup
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        (dict(variant="huri-lite"), "Unknown variant 'huri-lite'"),
+        (dict(method="huri-lite"), r"Unknown method 'huri-lite': expected one of \['huri-baseline', "),
+        (dict(method="baseline"), "Unknown method 'baseline'"),  # the name before it was huri-baseline
         (dict(distortion="exponential"), "Unknown distortion 'exponential'"),
-        (dict(variant="baseline", use_iqr=True), "need a quantile critic"),
-        (dict(variant="baseline", distortion="cvar"), "need a quantile critic"),
+        (dict(method="huri-baseline", use_iqr=True), "need a quantile critic: method='huri-baseline'"),
+        (dict(method="huri-baseline", distortion="cvar"), "need a quantile critic"),
         (dict(use_rnd="yes"), "use_rnd must be True or False, got 'yes'"),
         (dict(n_quantiles=1), r"n_quantiles must be an integer >= 2, got 1"),
         (dict(n_quantiles=8.0), r"n_quantiles must be an integer >= 2"),
@@ -77,7 +82,7 @@ def test_bad_risk_settings_raise_value_errors_saying_what_is_allowed(kwargs, mes
 
 
 def test_a_scalar_critic_takes_no_risk():
-    baseline = risk_of("baseline", n_quantiles=16)
+    baseline = risk_of("huri-baseline", n_quantiles=16)
     assert baseline.n_quantiles == 1  # the argument is ignored, as HuRiPPO documents
     with pytest.raises(ValueError, match="scalar critic"):
         RiskModel(**{**baseline.settings(), "use_rnd": True})
@@ -107,8 +112,8 @@ def test_assess_adds_the_iqr_bands_level_and_the_novelty_and_clips_cvar_to_one()
 def test_rollout_metrics_name_the_risk_level_for_both_distortions_and_keep_the_beta_names_for_wang():
     atoms = th.tensor([[0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 2.0, 3.0], [0.0, 0.1, 0.3, 0.5]])
     novelty = th.tensor([0.1, 0.2, 0.3])
-    for variant in ("huri", "huri-cvar", "cvar0.5"):
-        risk = risk_of(variant, n_quantiles=4)
+    for method in ("huri", "huri-cvar", "huri-cvar0.5"):
+        risk = risk_of(method, n_quantiles=4)
         reading = RiskReading(*(tensor.numpy() for tensor in risk.assess(atoms, novelty)))
         metrics = risk.rollout_metrics(reading)
         assert metrics["rollout/risk_mean"] == pytest.approx(float(reading.risk.mean()))
@@ -124,7 +129,7 @@ def test_rollout_metrics_name_the_risk_level_for_both_distortions_and_keep_the_b
 
 
 def test_a_cvar_run_logs_its_level_under_the_neutral_names_only():
-    model = HuRiPPO("MlpPolicy", dict_env(), variant="huri-cvar", seed=0, **SMALL)
+    model = HuRiPPO("MlpPolicy", dict_env(), method="huri-cvar", seed=0, **SMALL)
     recorder = KeyRecorder()
     model.set_logger(Logger(folder=None, output_formats=[recorder]))
     model.learn(64)
@@ -140,18 +145,19 @@ def test_a_cvar_run_logs_its_level_under_the_neutral_names_only():
 @pytest.mark.parametrize(
     "kwargs",
     [
-        dict(variant="cvar0.5", cvar_alpha=0.3),
-        dict(variant="huri", distortion="cvar", use_rnd=False, iqr_thresholds=(0.1, 0.4)),
-        dict(variant="huri-no-iqr", wang_beta=0.5, n_quantiles=16),
+        dict(method="huri-cvar0.5", cvar_alpha=0.3),
+        dict(method="huri", distortion="cvar", use_rnd=False, iqr_thresholds=(0.1, 0.4)),
+        dict(method="huri-no-iqr", wang_beta=0.5, n_quantiles=16),
     ],
-    ids=["cvar0.5", "cvar-without-rnd", "fixed-wang-beta"],
+    ids=["huri-cvar0.5", "cvar-without-rnd", "fixed-wang-beta"],
 )
 def test_a_loaded_model_has_the_saved_risk_model_and_continues_exactly(tmp_path, kwargs):
     model = HuRiPPO("MlpPolicy", dict_env(), seed=0, **kwargs, **SMALL).learn(64)
     model.save(tmp_path / "model.zip")
-    # `load` builds the model with the default arguments (variant "huri") before restoring the saved ones.
+    # `load` builds the model with the default arguments (method "huri") before restoring the saved ones.
     loaded = HuRiPPO.load(tmp_path / "model.zip")
     assert loaded.risk_model == model.risk_model != risk_of("huri", n_quantiles=16)
+    assert loaded.method == model.method
     assert (loaded.distortion, loaded.cvar_alpha) == (model.distortion, model.cvar_alpha)
     obs = dict_env().reset()
     np.testing.assert_array_equal(loaded.assess_risk(obs).value, model.assess_risk(obs).value)
@@ -163,17 +169,41 @@ def test_a_loaded_model_has_the_saved_risk_model_and_continues_exactly(tmp_path,
 
 
 def test_settings_given_to_load_rebuild_the_risk_model_and_are_checked(tmp_path):
-    HuRiPPO("MlpPolicy", dict_env(), variant="cvar0.5", **SMALL).save(tmp_path / "model.zip")
+    HuRiPPO("MlpPolicy", dict_env(), method="huri-cvar0.5", **SMALL).save(tmp_path / "model.zip")
     loaded = HuRiPPO.load(tmp_path / "model.zip", cvar_alpha=0.2)
     assert loaded.risk_model.cvar_alpha == loaded.cvar_alpha == 0.2
     with pytest.raises(ValueError, match="cvar_alpha"):
         HuRiPPO.load(tmp_path / "model.zip", cvar_alpha=2.0)
 
 
-@pytest.mark.parametrize(("algo", "variant"), [("huri", "huri"), ("ppo", "baseline")])
-def test_shipped_agents_load_with_their_variants_risk_model(algo, variant):
-    path = ROOT / "trained_agents" / algo / "Zerith1-v0_1" / "Zerith1-v0.zip"
+@pytest.mark.parametrize("method", ["huri", "huri-baseline"])
+def test_shipped_agents_load_with_their_methods_risk_model(method):
+    path = ROOT / "trained_agents" / method / "Zerith1-v0_1" / "Zerith1-v0.zip"
     if not path.is_file():
         pytest.skip(f"{path} is not there")
     model = HuRiPPO.load(path, device="cpu")
-    assert model.risk_model == risk_of(variant)
+    assert model.method == method and model.risk_model == risk_of(method)
+
+
+def test_a_saved_variant_is_read_as_its_method_under_todays_name():
+    assert method_of_saved({"variant": "baseline", "method": "huri"}) == "huri-baseline"
+    assert method_of_saved({"variant": "cvar0.5"}) == "huri-cvar0.5"
+    kept = [method for method in METHODS if method not in ("huri-baseline", "huri-cvar0.5")]
+    assert [method_of_saved({"variant": method}) for method in kept] == kept
+    assert method_of_saved({"method": "huri-no-rnd"}) == "huri-no-rnd"
+    assert method_of_saved({}) is None  # a model of SB3's own PPO
+
+
+def test_a_checkpoint_saved_with_a_variant_loads_with_its_method_and_saves_it(tmp_path):
+    """The shipped PPO baseline was saved when HuRiPPO took `variant="baseline"`, which its zip holds."""
+    path = ROOT / "trained_agents" / "huri-baseline" / "Zerith1-v0_1" / "Zerith1-v0.zip"
+    saved = json.loads(zipfile.ZipFile(path).read("data"))
+    assert saved["variant"] == "baseline" and "method" not in saved
+    for algorithm in (HuRiPPO, method_class("huri-baseline"), method_class("huri-cvar0.5")):
+        model = algorithm.load(path, device="cpu")
+        assert model.method == "huri-baseline" and "variant" not in vars(model)
+        assert model.risk_model == risk_of("huri-baseline")
+    model.save(tmp_path / "model.zip")
+    saved = json.loads(zipfile.ZipFile(tmp_path / "model.zip").read("data"))
+    assert saved["method"] == "huri-baseline" and "variant" not in saved
+    assert HuRiPPO.load(tmp_path / "model.zip", device="cpu").method == "huri-baseline"

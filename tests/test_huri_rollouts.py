@@ -1,4 +1,4 @@
-"""HuRi's advantages against SB3 PPO's: the buffer on shared data, and the baseline variant end to end."""
+"""HuRi's advantages against SB3 PPO's: the buffer on shared data, and the huri-baseline method end to end."""
 
 import numpy as np
 import pytest
@@ -74,7 +74,7 @@ def test_collapsed_quantiles_with_beta_zero_give_sb3_advantages():
         ("Pendulum-v1", 20, dict(use_sde=True, sde_sample_freq=4, target_kl=1e-4, n_epochs=4)),
     ],
 )
-def test_baseline_variant_trains_exactly_like_sb3_ppo(env_id, max_episode_steps, options):
+def test_huri_baseline_trains_exactly_like_sb3_ppo(env_id, max_episode_steps, options):
     """Same seed, same policy class: identical rollouts, advantages, returns and updated parameters."""
     env_kwargs = {"max_episode_steps": max_episode_steps} if max_episode_steps else None
     settings = dict(n_steps=32, batch_size=16, n_epochs=2, gamma=GAMMA, gae_lambda=GAE_LAMBDA, seed=3)
@@ -91,7 +91,7 @@ def test_baseline_variant_trains_exactly_like_sb3_ppo(env_id, max_episode_steps,
     huri = HuRiPPO(
         "MlpPolicy",
         make_vec_env(env_id, n_envs=2, seed=3, env_kwargs=env_kwargs),
-        variant="baseline",
+        method="huri-baseline",
         policy_kwargs=policy_kwargs,
         **settings,
     ).learn(64)
@@ -118,9 +118,7 @@ def test_time_out_targets_bootstrap_from_the_final_observation():
     """A time-out step's target atoms are ``r + gamma * Z(final observation)``, sorted atoms of that state."""
     n_envs, n_steps = 2, 24
     env = make_vec_env("Pendulum-v1", n_envs=n_envs, seed=0, env_kwargs=dict(max_episode_steps=7))
-    model = HuRiPPO(
-        "MlpPolicy", env, n_steps=n_steps, variant="huri-no-rnd", gamma=0.9, n_quantiles=8, seed=0
-    )
+    model = HuRiPPO("MlpPolicy", env, n_steps=n_steps, method="huri-no-rnd", gamma=0.9, n_quantiles=8, seed=0)
     model.learn(n_steps * n_envs)
     buffer = model.rollout_buffer
     steps, envs = np.nonzero(buffer.bootstrap_values)
@@ -169,7 +167,7 @@ def test_time_outs_bootstrap_from_the_normalized_final_observation_under_vecnorm
         norm_reward=True,
     )
     model = HuRiPPO(
-        "MlpPolicy", env, n_steps=n_steps, n_epochs=1, variant="huri-no-rnd", n_quantiles=8, seed=0
+        "MlpPolicy", env, n_steps=n_steps, n_epochs=1, method="huri-no-rnd", n_quantiles=8, seed=0
     )
     recorder = FinalObservationRecorder()
     model.learn(n_steps * n_envs, callback=recorder)

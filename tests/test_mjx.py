@@ -172,7 +172,7 @@ def _walking_policy():
 
     from stable_baselines3 import PPO
 
-    run = Path(__file__).resolve().parent.parent / "trained_agents" / "ppo" / "Zerith1-v0_1"
+    run = Path(__file__).resolve().parent.parent / "trained_agents" / "huri-baseline" / "Zerith1-v0_1"
     model = PPO.load(run / "Zerith1-v0.zip", device="cpu")
     with open(run / "Zerith1-v0" / "vecnormalize.pkl", "rb") as file:
         normalizer = pickle.load(file)

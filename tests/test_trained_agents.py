@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
@@ -20,24 +21,24 @@ from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, gait_measures
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
-AGENTS = {"huri": "huri", "ppo": "baseline"}
-"""Shipped RL Zoo algorithm folder -> the HuRiPPO variant it must hold (the baseline is PPO exactly, so it
-is shipped where RL Zoo's own `ppo` looks for it)."""
+AGENTS = ("huri", "huri-baseline")
+"""The shipped agents' methods: each is in the folder of its RL Zoo algorithm, the method's name."""
 
 
-@pytest.mark.parametrize("algo", list(AGENTS))
-def test_shipped_agent_has_rl_zoo_layout_and_is_small(algo: str) -> None:
-    run = REPO / "trained_agents" / algo / f"{ENV_ID}_1"
+@pytest.mark.parametrize("method", AGENTS)
+def test_shipped_agent_has_rl_zoo_layout_and_is_small(method: str) -> None:
+    run = REPO / "trained_agents" / method / f"{ENV_ID}_1"
     for name in (f"{ENV_ID}.zip", f"{ENV_ID}/vecnormalize.pkl", f"{ENV_ID}/config.yml", f"{ENV_ID}/args.yml"):
         assert (run / name).is_file(), name
     assert (run / f"{ENV_ID}.zip").stat().st_size < 5_000_000
+    assert yaml.safe_load((run / ENV_ID / "args.yml").read_text())["algo"] == method
 
 
-@pytest.mark.parametrize(("algo", "variant"), list(AGENTS.items()))
-def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(algo: str, variant: str) -> None:
-    run = REPO / "trained_agents" / algo / f"{ENV_ID}_1"
+@pytest.mark.parametrize("method", AGENTS)
+def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(method: str) -> None:
+    run = REPO / "trained_agents" / method / f"{ENV_ID}_1"
     model = HuRiPPO.load(run / f"{ENV_ID}.zip", device="cpu")
-    assert model.variant == variant
+    assert model.method == method
     env = zerith_gym.make_vec_env(4, seed=0, scenario="nominal", command=(0.5, 0.0, 0.0))
     normalizer = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
     normalizer.training = False
@@ -49,7 +50,7 @@ def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(algo: st
         assert not any(info["fall"] for info in infos)
 
 
-@pytest.mark.parametrize("algo", list(AGENTS))
+@pytest.mark.parametrize("algo", AGENTS)
 def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str) -> None:
     script = shutil.which("rl_zoo3", path=str(Path(sys.executable).parent))
     command = [script] if script else [sys.executable, "-m", "sb3_huri.zoo"]
@@ -64,7 +65,7 @@ def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str) -> None:
 def test_sb3_ppo_loads_the_shipped_baseline_and_acts_as_huri_ppo_does() -> None:
     from stable_baselines3 import PPO
 
-    path = REPO / "trained_agents" / "ppo" / f"{ENV_ID}_1" / f"{ENV_ID}.zip"
+    path = REPO / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1" / f"{ENV_ID}.zip"
     ppo, huri = PPO.load(path, device="cpu"), HuRiPPO.load(path, device="cpu")
     obs = zerith_gym.make_vec_env(4, seed=0, scenario="train").reset()
     noise = np.random.default_rng(0)
@@ -106,15 +107,15 @@ def test_load_run_names_the_missing_model(tmp_path):
         load_run(tmp_path, "Zerith1-v0")
 
 
-@pytest.mark.parametrize("algo", list(AGENTS))
-def test_shipped_agent_survives_the_papers_push_tests(algo: str) -> None:
+@pytest.mark.parametrize("method", AGENTS)
+def test_shipped_agent_survives_the_papers_push_tests(method: str) -> None:
     """Both shipped agents were trained with the robust recipe and survive Table 1 (docs/training.md,
     "Shipped agents"): on the paper's sudden pushes at the centroid and the side impact, every one of 4 robots
     walks its 20 s at the 1 m/s command. A change to the env that breaks what they learned fails here."""
     from sb3_huri.experiments.evaluation import evaluate
     from sb3_huri.zoo import load_run
 
-    model, normalizer = load_run(REPO / "trained_agents" / algo / f"{ENV_ID}_1", ENV_ID, normalized=True)
+    model, normalizer = load_run(REPO / "trained_agents" / method / f"{ENV_ID}_1", ENV_ID, normalized=True)
     for scenario in ("sudden-centroid", "side-impact"):
         result = evaluate(model, normalizer, scenario, None, episodes=4, seed=2000, workers=1)
         assert result["survive"] == 1.0, (scenario, result)
@@ -122,10 +123,10 @@ def test_shipped_agent_survives_the_papers_push_tests(algo: str) -> None:
 
 
 def test_evaluate_agents_gives_each_case_of_each_agent_with_its_survival_interval() -> None:
-    folders = [REPO / "trained_agents" / algo / f"{ENV_ID}_1" for algo in AGENTS]
+    folders = [REPO / "trained_agents" / method / f"{ENV_ID}_1" for method in AGENTS]
     rows = agents.evaluate_agents(folders, ["nominal@0.5", "sudden-feet"], episodes=2, seed=1000)
     assert [(row.agent, row.case) for row in rows] == [
-        (f"{algo}/{ENV_ID}_1", case) for algo in AGENTS for case in ("nominal@0.5", "sudden-feet")
+        (f"{method}/{ENV_ID}_1", case) for method in AGENTS for case in ("nominal@0.5", "sudden-feet")
     ]
     for row in rows:
         assert row.episodes == 2 and 0.0 <= row.low <= row.survive <= row.high <= 1.0
@@ -133,7 +134,7 @@ def test_evaluate_agents_gives_each_case_of_each_agent_with_its_survival_interva
 
 
 def test_compare_agents_pairs_the_robots_and_finds_no_difference_between_an_agent_and_itself() -> None:
-    huri, ppo = (REPO / "trained_agents" / algo / f"{ENV_ID}_1" for algo in ("huri", "ppo"))
+    huri, ppo = (REPO / "trained_agents" / method / f"{ENV_ID}_1" for method in AGENTS)
     with pytest.raises(ValueError, match="unknown scenario 'sudden-head'"):  # before anything is evaluated
         agents.compare_agents(huri, ppo, ["sudden-centroid", "sudden-head"], episodes=3, seed=2000)
     (row,) = agents.compare_agents(huri, huri, ["sudden-centroid"], episodes=3, seed=2000)

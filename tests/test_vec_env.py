@@ -101,6 +101,27 @@ def test_batched_robots_reproduce_single_envs_in_other_scenarios(env_kwargs):
     assert counts["falls"] + counts["time_outs"] >= 1
 
 
+@pytest.mark.parametrize("workers", [0, 1])
+def test_observations_handed_out_stay_as_they_were_through_later_steps_and_resets(workers):
+    """The env hands out its observation arrays without copies (the task never writes into them again): next
+    and terminal observations kept by the caller, as SB3 keeps `_last_obs`, must not change afterwards."""
+    venv = zerith_gym.make_vec_env(4, seed=3, workers=workers, episode_steps=3)
+    kept = [venv.reset()]
+    resets = 0
+    for _ in range(7):
+        obs, _, dones, infos = venv.step(np.zeros((4, 12)))
+        kept += [obs] + [infos[i]["terminal_observation"] for i in np.flatnonzero(dones)]
+        resets += int(dones.sum())
+    frozen = [{key: value.copy() for key, value in obs.items()} for obs in kept]
+    for _ in range(4):
+        venv.step(np.zeros((4, 12)))
+    venv.close()
+    assert resets >= 8
+    for before, now in zip(frozen, kept, strict=True):
+        for key in before:
+            np.testing.assert_array_equal(now[key], before[key], err_msg=key)
+
+
 def test_vec_env_contract_spaces_auto_reset_and_episode_statistics():
     venv = zerith_gym.make_vec_env(4, seed=0, episode_steps=30)
     assert isinstance(venv, VecEnv) and venv.num_envs == 4

@@ -21,6 +21,7 @@ pytest.importorskip("rl_zoo3", reason="RL Zoo is not installed (pip install -e '
 import optuna
 import yaml
 
+import sb3_huri
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import METHODS, PRESETS_FILE, method_class
 from sb3_huri.zoo.sampler import convert_huri_params, sample_huri_params
@@ -110,7 +111,7 @@ def test_train_writes_model_evaluations_and_tensorboard(zerith_run: Path) -> Non
         "terms/lin_vel_error" in tags
     )  # the preset's `callback:` entry, zerith_gym.callbacks.RewardTermsLogger
     model = HuRiPPO.load(run_folder / "Zerith1-v0.zip", device="cpu")
-    assert model.variant == "huri"
+    assert model.method == "huri"
     assert model.num_timesteps >= 512
 
 
@@ -139,7 +140,7 @@ def test_train_without_conf_uses_the_packaged_presets(tmp_path: Path) -> None:
     result = run([*command, "--eval-freq", "-1", "--num-threads", "1", "-params", "n_steps:64"], tmp_path)
     assert f"Loading hyperparameters from: {PRESETS_FILE}" in result.stdout
     model = HuRiPPO.load(tmp_path / "logs/huri-baseline/Pendulum-v1_1/Pendulum-v1.zip", device="cpu")
-    assert model.variant == "baseline"
+    assert model.method == "huri-baseline"
 
 
 @requires_hook
@@ -200,7 +201,7 @@ def test_wrapper_works_without_the_hook(tmp_path: Path) -> None:
         tmp_path,
     )
     model = HuRiPPO.load(tmp_path / "logs/huri-cvar0.5/Pendulum-v1_1/Pendulum-v1.zip", device="cpu")
-    assert model.variant == "cvar0.5"
+    assert model.method == "huri-cvar0.5"
 
 
 @requires_hook
@@ -224,22 +225,29 @@ def test_importing_rl_zoo3_registers_every_method_and_the_env() -> None:
     import rl_zoo3
     from rl_zoo3.hyperparams_opt import HYPERPARAMS_SAMPLER
 
-    for name, variant in METHODS.items():
-        assert rl_zoo3.ALGOS[name] is method_class(variant)
-        assert HYPERPARAMS_SAMPLER[name] is sample_huri_params
+    for method in METHODS:
+        assert rl_zoo3.ALGOS[method] is method_class(method)
+        assert HYPERPARAMS_SAMPLER[method] is sample_huri_params
     assert "Zerith1-v0" in gym.registry
 
 
-@pytest.mark.parametrize("name", sorted(METHODS))
-def test_method_class_fixes_the_variant(name: str) -> None:
-    model = method_class(METHODS[name])("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
+def test_the_methods_are_the_presets_names_in_order() -> None:
+    assert METHODS == ("huri-baseline", "huri-cvar0.5", "huri-no-rnd", "huri-no-iqr", "huri", "huri-cvar")
+    assert tuple(sb3_huri.METHODS) == METHODS
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_method_class_fixes_the_method(method: str) -> None:
+    model = method_class(method)("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
     assert isinstance(model, HuRiPPO)
-    assert model.variant == METHODS[name]
+    assert model.method == method
 
 
-def test_method_class_rejects_a_conflicting_variant() -> None:
-    with pytest.raises(ValueError, match="variant"):
-        method_class("cvar0.5")("MlpPolicy", "Pendulum-v1", variant="huri", device="cpu")
+def test_method_class_rejects_a_conflicting_method_and_an_unknown_one() -> None:
+    with pytest.raises(ValueError, match=r"method='huri' conflicts with the algorithm huri-cvar0.5"):
+        method_class("huri-cvar0.5")("MlpPolicy", "Pendulum-v1", method="huri", device="cpu")
+    with pytest.raises(ValueError, match=r"unknown method 'cvar0.5': expected one of \['huri-baseline'"):
+        method_class("cvar0.5")
 
 
 def test_sampled_hyperparameters_build_a_model() -> None:

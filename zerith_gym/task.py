@@ -364,7 +364,10 @@ class TaskState(NamedTuple):
 
     One record for both backends: the CPU task (`ZerithTask.state`) keeps numpy arrays, replaced each step by
     `begin_step` and `end_step` and written in place only at resets; the MJX backend keeps JAX arrays
-    inside its `MjxState`, replaced every step.
+    inside its `MjxState`, replaced every step. The observation arrays are never written in place: a reset
+    writes its robots' first observations into new arrays (`ZerithTask.observe`), so the arrays a step hands
+    out (next and terminal observations) stay as they are, and the batch and the VecEnv pass them on
+    without copies.
     """
 
     step_count: np.ndarray  # (n,) int, control steps into the episode
@@ -625,7 +628,8 @@ class ZerithTask:
         started = TaskState(*(field[ids] for field in state))
         policy, critic = self.task.observe(started, readings, noise, self.constants)
         state.joint_vel[ids] = readings.joint_vel
-        # New arrays: those of the last step were handed out (terminal observations of these robots).
+        # New arrays: those of the last step were handed out (the step's observations, terminal ones of these
+        # robots included), and whoever holds them may keep them (TaskState).
         state = self.state = state._replace(
             policy_obs=state.policy_obs.copy(), critic_obs=state.critic_obs.copy()
         )

@@ -163,7 +163,7 @@ class ZerithVecEnv(VecEnv):
                 info = infos[i]
                 info["TimeLimit.truncated"] = bool(out.truncated[i])
                 info["terminal_observation"] = format_observation(
-                    self.obs_mode, out.policy_obs[i].copy(), out.critic_obs[i].copy()
+                    self.obs_mode, out.policy_obs[i], out.critic_obs[i]
                 )
                 info["episode_terms"] = dict(zip(self.reward_names, self._term_sums[i].tolist(), strict=True))
                 info["episode"] = {
@@ -175,10 +175,9 @@ class ZerithVecEnv(VecEnv):
             self._returns[ended] = 0.0
             self._lengths[ended] = 0
             self._term_sums[ended] = 0.0
-        policy, critic = step.policy_obs, step.critic_obs
-        if policy is out.policy_obs:  # views of the batch's buffers: SB3 keeps what it is given
-            policy, critic = policy.copy(), critic.copy()
-        return format_observation(self.obs_mode, policy, critic), out.reward.astype(np.float32), dones, infos
+        # The step's arrays are never written again (`ZerithTask.observe`): SB3 may keep them as they are.
+        observation = format_observation(self.obs_mode, step.policy_obs, step.critic_obs)
+        return observation, out.reward.astype(np.float32), dones, infos
 
     def set_scenario(self, scenario: str | Scenario) -> None:
         """Follow another scenario from now on, e.g. a curriculum's next stage (`scenarios.scaled_scenario`).

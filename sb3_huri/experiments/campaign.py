@@ -26,8 +26,9 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 from sb3_huri.experiments.layout import ExperimentError
 from sb3_huri.experiments.queue import ENV_ID, CampaignEntry, load_queue
@@ -53,7 +54,7 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
         defaults = entry.defaults
         request = RunRequest(
             run=entry.run, preset=read_preset(entry.env_id, entry.conf), method=entry.method,
-            seed=entry.seed, until=entry.steps, env_id=entry.env_id,
+            seed=entry.seed, until=entry.steps, env_id=entry.env_id, hyperparams=entry.hyperparams,
         )  # fmt: skip
         rows = RobustnessSchedule(
             defaults.robustness_every,
@@ -165,18 +166,31 @@ def run_campaign(
                     if child.poll() is None:
                         continue
                     del running[slot]
-                    echo(
-                        f"{time.strftime('%H:%M:%S')} {entry.name}: exit {child.returncode}, {entry.state()}"
-                    )
-                    unfinished = entry.state() != "done" and (deadline is None or time.time() < deadline)
-                    if not stopping and (child.returncode != 0 or unfinished):  # see <run>/train.log
-                        failures[entry.name] = failures.get(entry.name, 0) + 1
-                        again = "started again" if failures[entry.name] < TRIES else "left alone"
-                        echo(f"{entry.name} ended unfinished ({failures[entry.name]} of {TRIES}): {again}")
+                    out_of_time = deadline is not None and time.time() >= deadline
+                    _report_end(entry, child.returncode, stopping or out_of_time, failures, echo)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return [entry for entry in load_queue(queue) if entry.state() != "done"]
+
+
+def _report_end(
+    entry: CampaignEntry, returncode: int, stopped: bool, failures: dict[str, int], echo: Callable[[str], Any]
+) -> None:
+    """Say how an entry's child ended; one that ended unfinished though nothing stopped it counts as a failure
+    (started again until it has failed `TRIES` times; its ``<run>/train.log`` says why)."""
+    state = entry.state()
+    echo(f"{time.strftime('%H:%M:%S')} {entry.name}: exit {returncode}, {state}")
+    if stopped:
+        if state != "done":
+            echo(
+                f"{entry.name} stopped at the wall-time limit or a stop signal, to go on from its checkpoint"
+            )
+        return
+    if returncode != 0 or state != "done":
+        failures[entry.name] = failures.get(entry.name, 0) + 1
+        again = "started again" if failures[entry.name] < TRIES else "left alone"
+        echo(f"{entry.name} ended unfinished ({failures[entry.name]} of {TRIES}): {again}")
 
 
 def recent_rate(run: Path, rows: int = 200) -> float | None:
@@ -195,7 +209,7 @@ def status_table(queue: Path) -> str:
     training hours left at that speed, and state."""
     import json
 
-    header = f"{'entry':24} {'protocol':9} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
+    header = f"{'entry':24} {'protocol':10} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     for entry in load_queue(queue):
         state_file = entry.run / entry.env_id / "state.json"
@@ -206,7 +220,7 @@ def status_table(queue: Path) -> str:
             f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
         )
         lines.append(
-            f"{entry.name:24} {entry.protocol:9} {entry.method:14} {entry.seed:4} "
+            f"{entry.name:24} {entry.protocol:10} {entry.method:14} {entry.seed:4} "
             f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
         )
     return "\n".join(lines)

@@ -14,12 +14,13 @@ own folder. The same run folder may appear in several entries (trained to 150M, 
       episode_steps: 1000        # 20 s evaluation episodes
     entries:
       - name: robust-huri-s0     # unique
-        protocol: robust         # robust, paper (the paper's training ranges), terrain or quadruped
+        protocol: robust         # one of PROTOCOLS (below)
         method: huri             # an RL Zoo algorithm name of sb3_huri.zoo.METHODS
         seed: 0
         run: huri/Zerith1-v0_6
         conf: ../hyperparams/huri_robust.yml
         steps: 156732992         # train until at least this many steps, then evaluate
+        hyperparams: {n_envs: 256, n_steps: 64}  # optional: preset entries replaced, as rl_zoo3 -params
 
 An entry is *done* when its run has trained that far and an evaluation written for the entry exists in
 ``<run>/evaluations/``. Nothing else is stored: the run folders are the campaign's state.
@@ -37,10 +38,13 @@ import yaml
 from sb3_huri.experiments.layout import ExperimentError
 
 ENV_ID = "Zerith1-v0"
-PROTOCOLS = ("robust", "paper", "terrain", "quadruped")
-"""The training protocols: the project's (train at the test magnitudes), the paper's (train at its Table-5
-ranges, test out of distribution), the paper's terrain training (its appendix A.7), and the paper's
-quadruped (its appendix A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms)."""
+PROTOCOLS = ("robust", "robust-256", "paper", "terrain", "quadruped")
+"""The training protocols: the project's (train at the test magnitudes), the same with 256 robots x 64 steps
+per update instead of 32 x 512 (as many samples per update; a recipe that uses more cores, and whether it
+learns per sample as the 32-robot one does), the paper's (train at its Table-5 ranges, test out of
+distribution), the paper's terrain training (its appendix A.7), and the paper's quadruped (its appendix
+A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms). Entries pair and average only
+within a protocol."""
 PROTOCOL_ENVS = {"quadruped": "Go2Like-v0"}
 """The env a protocol trains on where it is not ``ENV_ID``."""
 EVALUATIONS = "evaluations"
@@ -71,6 +75,8 @@ class CampaignEntry:
     conf: Path
     steps: int
     defaults: QueueDefaults = field(default_factory=QueueDefaults)
+    hyperparams: dict[str, Any] = field(default_factory=dict)
+    """Preset entries replaced for this entry's run, as ``rl_zoo3 train -params`` (stored in its config)."""
 
     @property
     def env_id(self) -> str:
@@ -98,6 +104,7 @@ class CampaignEntry:
 
 
 _REQUIRED = ("name", "protocol", "method", "seed", "run", "conf", "steps")
+_OPTIONAL = ("hyperparams",)
 
 
 def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Path) -> CampaignEntry:
@@ -106,7 +113,7 @@ def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Pat
     if not isinstance(raw, dict):
         raise ExperimentError(f"{where}: entry {index} is not a mapping of {', '.join(_REQUIRED)}")
     missing = [key for key in _REQUIRED if key not in raw]
-    unknown = sorted(set(raw) - set(_REQUIRED))
+    unknown = sorted(set(raw) - set(_REQUIRED) - set(_OPTIONAL))
     if missing or unknown:
         raise ExperimentError(
             f"{where}: entry {index} ({raw.get('name', '?')}): "
@@ -118,7 +125,7 @@ def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Pat
                 )
                 if part
             )
-            + f" (an entry has {', '.join(_REQUIRED)})"
+            + f" (an entry has {', '.join(_REQUIRED)}, optionally {', '.join(_OPTIONAL)})"
         )
     if raw["protocol"] not in PROTOCOLS:
         raise ExperimentError(
@@ -139,9 +146,15 @@ def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Pat
     conf = (base / raw["conf"]).resolve()
     if not conf.is_file():
         raise ExperimentError(f"{where}: entry {raw['name']}: preset file {conf} not found")
+    hyperparams = raw.get("hyperparams") or {}
+    if not isinstance(hyperparams, dict) or not all(isinstance(key, str) for key in hyperparams):
+        raise ExperimentError(
+            f"{where}: entry {raw['name']}: hyperparams must map preset names to values, "
+            f"e.g. {{n_envs: 256, n_steps: 64}}; got {hyperparams!r}"
+        )
     return CampaignEntry(
         str(raw["name"]), raw["protocol"], raw["method"], seed, (base / raw["run"]).resolve(), conf, steps,
-        defaults,
+        defaults, dict(hyperparams),
     )  # fmt: skip
 
 

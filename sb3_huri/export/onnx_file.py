@@ -10,6 +10,7 @@ import numpy as np
 
 from sb3_huri.export.graph import INPUT_NAME, OUTPUT_NAME, actor_graph, actor_of, normalization_of
 from sb3_huri.export.metadata import deployment_metadata
+from sb3_huri.huri.methods import method_of_saved
 from sb3_huri.version import __version__
 
 FORMAT = "sb3_huri.actor/1"
@@ -43,7 +44,7 @@ def export_actor(
         "package": "sb3-huri",
         "package_version": __version__,
         "algorithm": type(model).__name__,
-        "variant": getattr(model, "variant", None),
+        "method": method_of_saved(vars(model)),
         "source": source,
         "input": INPUT_NAME,
         "output": OUTPUT_NAME,

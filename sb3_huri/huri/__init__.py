@@ -1,12 +1,12 @@
 """HuRiPPO: adaptive risk-aware distributional PPO."""
 
 from sb3_huri.huri.huri import HuRiPPO, UnnormalizedRewardWarning
+from sb3_huri.huri.methods import METHODS, RiskPreset, method_of_saved
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel
-from sb3_huri.huri.variants import VARIANTS, RiskPreset
 
 __all__ = [
-    "VARIANTS",
+    "METHODS",
     "HuRiPPO",
     "HuRiPolicy",
     "MlpPolicy",
@@ -15,4 +15,5 @@ __all__ = [
     "RiskModel",
     "RiskPreset",
     "UnnormalizedRewardWarning",
+    "method_of_saved",
 ]

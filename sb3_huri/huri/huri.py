@@ -27,6 +27,7 @@ from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
 from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
 from sb3_huri.common.rnd import RNDTrainingCallback
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
+from sb3_huri.huri.methods import method_of_saved
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
 
@@ -47,8 +48,8 @@ class HuRiPPO(OnPolicyAlgorithm):
     atoms (eq. 4) plus an expectation loss (eq. 5). Advantages are GAE on the distorted value
     ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)``, where each state's risk parameter ``beta_s`` is
     ``beta_IQR`` (from the interquartile range of its atoms, Algorithm 1) plus ``tanh`` of its RND novelty.
-    The paper's methods are presets (``variant``); every knob below overrides its preset. The risk arguments
-    (``variant`` to ``iqr_risk_levels``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
+    The paper's methods are presets (``method``); every knob below overrides its preset. The risk arguments
+    (``method`` to ``iqr_risk_levels``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
     ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
     names, which it saves.
     Defaults are the paper's Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
@@ -80,13 +81,13 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param critic_learning_rate: the critic's own learning rate (a float or a schedule); ``None`` (default)
         shares ``learning_rate``. A trust region on a narrow action noise needs a small actor rate, which
         would stop the critic learning if it were shared (docs/huri.md)
-    :param variant: preset, one of ``baseline``, ``cvar0.5``, ``huri-no-rnd``, ``huri-no-iqr``, ``huri``,
-        ``huri-cvar`` (see ``sb3_huri.huri.variants``)
+    :param method: the method's preset, one of ``huri-baseline``, ``huri-cvar0.5``, ``huri-no-rnd``,
+        ``huri-no-iqr``, ``huri``, ``huri-cvar`` (see ``sb3_huri.huri.methods``; the RL Zoo algorithm names)
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
-        given, else 64 (ignored by ``baseline``, whose critic is scalar)
-    :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the variant's
-    :param use_iqr: risk level from the IQR band; ``None`` takes the variant's
-    :param use_rnd: add ``tanh(RND error)`` to the risk level; ``None`` takes the variant's
+        given, else 64 (ignored by ``huri-baseline``, whose critic is scalar)
+    :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the method's
+    :param use_iqr: risk level from the IQR band; ``None`` takes the method's
+    :param use_rnd: add ``tanh(RND error)`` to the risk level; ``None`` takes the method's
     :param wang_beta: Wang risk level when ``use_iqr`` is off (0: neutral, > 0: averse, < 0: seeking)
     :param cvar_alpha: CVaR level in ``(0, 1]`` when ``use_iqr`` is off (1: neutral)
     :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
@@ -145,7 +146,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         target_kl: float | None = None,
         desired_kl: float | None = None,
         critic_learning_rate: float | Schedule | None = None,
-        variant: str = "huri",
+        method: str = "huri",
         n_quantiles: int | None = None,
         distortion: str | None = None,
         use_iqr: bool | None = None,
@@ -168,9 +169,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        self.variant, policy_kwargs = variant, dict(policy_kwargs or {})
+        self.method, policy_kwargs = method, dict(policy_kwargs or {})
         self._set_risk_model(RiskModel.from_arguments(
-            variant, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
+            method, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
             distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
             cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
         ))  # fmt: skip
@@ -241,6 +242,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         return _resolve_batch_size(batch_size, self.n_minibatches, self.n_steps * self.env.num_envs)
 
     def _setup_model(self) -> None:
+        # `load` restores the saved attributes: a model saved before `variant` became `method` has `variant`.
+        self.method = method_of_saved(self.__dict__) or self.method
+        self.__dict__.pop("variant", None)
         # The risk settings may be a loaded model's (or given to `load`): its risk model is rebuilt from them.
         self._set_risk_model(RiskModel.from_attributes(self))
         self._setup_lr_schedule()
@@ -286,7 +290,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         if kwargs.setdefault("n_quantiles", n_quantiles) != n_quantiles:
             raise ValueError(
                 f"policy_kwargs['n_quantiles']={kwargs['n_quantiles']} does not match the critic of "
-                f"variant={self.variant!r} ({n_quantiles} atoms)"
+                f"method={self.method!r} ({n_quantiles} atoms)"
             )
         rnd_kwargs = kwargs.get("rnd_kwargs")
         kwargs["rnd_kwargs"] = (
@@ -597,7 +601,8 @@ class HuRiPPO(OnPolicyAlgorithm):
     def load(cls: type[SelfHuRiPPO], path: Any, env: GymEnv | None = None, **kwargs: Any) -> SelfHuRiPPO:
         """SB3's ``load``. Hyperparameters passed in `kwargs` replace the saved ones (as in SB3, and as
         ``rl_zoo3 train -i`` continues a trained agent with its preset's); they are checked as the
-        constructor checks them, and a ValueError names the first invalid one."""
+        constructor checks them, and a ValueError names the first invalid one. A model saved before
+        ``variant`` became ``method`` loads with its method under today's name (``method_of_saved``)."""
         model = super().load(path, env, **kwargs)
         model._check_settings()
         return model

@@ -19,7 +19,7 @@ import torch as th
 
 from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
 from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
-from sb3_huri.huri.variants import DEFAULT_IQR_RISK_LEVELS, VARIANTS
+from sb3_huri.huri.methods import DEFAULT_IQR_RISK_LEVELS, METHODS
 
 DEFAULT_N_QUANTILES = 64
 """Critic atoms ``N`` when neither the argument nor ``policy_kwargs`` gives them (paper Table 3)."""
@@ -136,7 +136,7 @@ class RiskModel:
     @classmethod
     def from_arguments(
         cls,
-        variant: str,
+        method: str,
         *,
         n_quantiles: int | None,
         distortion: str | None,
@@ -148,21 +148,21 @@ class RiskModel:
         iqr_risk_levels: tuple[float, float, float] | None,
     ) -> "RiskModel":
         """The model HuRiPPO's risk arguments describe (all of them: their defaults are HuRiPPO's): the
-        preset ``variant`` (``sb3_huri.huri.variants``) with the given settings overriding its own. ``None``
+        preset of ``method`` (``sb3_huri.huri.methods``) with the given settings overriding its own. ``None``
         takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``), 64 atoms (``n_quantiles``; a scalar
         critic has 1) and the distortion's levels (``iqr_risk_levels``: Wang ``(-1, 0, 1)``, CVaR
         ``(1, 1, 0.5)``, paper A.8).
 
-        :raises ValueError: for an unknown variant or distortion, risk settings on the scalar critic of
-            ``baseline``, or any setting out of its range
+        :raises ValueError: for an unknown method or distortion, risk settings on the scalar critic of
+            ``huri-baseline``, or any setting out of its range
         """
-        if variant not in VARIANTS:
-            raise ValueError(f"Unknown variant {variant!r}: expected one of {list(VARIANTS)}")
-        preset = VARIANTS[variant]
+        if method not in METHODS:
+            raise ValueError(f"Unknown method {method!r}: expected one of {list(METHODS)}")
+        preset = METHODS[method]
         if not preset.distributional and (distortion is not None or use_iqr or use_rnd):
             raise ValueError(
-                "distortion, use_iqr and use_rnd need a quantile critic: variant='baseline' has a scalar "
-                f"critic (choose one of {[name for name, p in VARIANTS.items() if p.distributional]})"
+                f"distortion, use_iqr and use_rnd need a quantile critic: method={method!r} has a scalar "
+                f"critic (choose one of {[name for name, p in METHODS.items() if p.distributional]})"
             )
         overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd)
         preset = replace(preset, **{key: value for key, value in overrides.items() if value is not None})

@@ -7,7 +7,8 @@ functions below as soon as RL Zoo has imported the module each one needs, so RL 
 
 ``register()`` does all of it at once, for scripts and for the hook-free wrapper ``python -m sb3_huri.zoo``.
 
-Each method of the paper's comparison is its own RL Zoo algorithm (``METHODS``), so that RL Zoo's log folders
+Each method of the paper's comparison is its own RL Zoo algorithm of the same name (``METHODS``: the algorithm
+``huri-cvar0.5`` is ``HuRiPPO(method="huri-cvar0.5")``), so that RL Zoo's log folders
 (``logs/<algo>/<env>_<run>``), ``enjoy --algo`` and ``plots.all_plots -a`` tell the methods apart with no
 extra flag, while all of them read the same presets.
 """
@@ -19,20 +20,14 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.huri import methods as _methods
 from sb3_huri.zoo.runs import load_checkpoint as load_checkpoint
 from sb3_huri.zoo.runs import load_run as load_run
 from sb3_huri.zoo.runs import next_run_folder as next_run_folder
 from sb3_huri.zoo.runs import save_run as save_run
 
-# RL Zoo algorithm name -> HuRiPPO ``variant``.
-METHODS = {
-    "huri-baseline": "baseline",
-    "huri-cvar0.5": "cvar0.5",
-    "huri-no-rnd": "huri-no-rnd",
-    "huri-no-iqr": "huri-no-iqr",
-    "huri": "huri",
-    "huri-cvar": "huri-cvar",
-}
+METHODS: tuple[str, ...] = tuple(_methods.METHODS)
+"""The methods, each an RL Zoo algorithm of its name (``HuRiPPO``'s ``method``, ``sb3_huri.huri.methods``)."""
 
 # The presets shipped inside the package (``sb3_huri/zoo/hyperparams`` links to the repository's
 # ``hyperparams`` folder, as ``rl_zoo3/hyperparams`` does in RL Zoo).
@@ -52,8 +47,8 @@ def register_algorithms() -> None:
     """Add the methods of ``METHODS`` to ``rl_zoo3.ALGOS``."""
     from rl_zoo3.utils import ALGOS
 
-    for name, variant in METHODS.items():
-        ALGOS.setdefault(name, method_class(variant))
+    for method in METHODS:
+        ALGOS.setdefault(method, method_class(method))
 
 
 def register_environments() -> None:
@@ -159,25 +154,28 @@ def use_batched_zerith_env() -> None:
 
 
 @functools.cache
-def method_class(variant: str) -> type:
-    """``HuRiPPO`` with its ``variant`` fixed: the class RL Zoo builds for one method of the comparison."""
+def method_class(method: str) -> type:
+    """``HuRiPPO`` with its ``method`` fixed: the class RL Zoo builds for the algorithm `method` (``huri`` is
+    ``HuRiPPO`` itself, whose default method it is); ValueError for a name not in ``METHODS``."""
     from sb3_huri import HuRiPPO
 
-    if variant == "huri":
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}: expected one of {list(METHODS)}")
+    if method == "huri":
         return HuRiPPO
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        if kwargs.setdefault("variant", variant) != variant:
+        if kwargs.setdefault("method", method) != method:
             raise ValueError(
-                f"variant={kwargs['variant']!r} conflicts with the algorithm, which is HuRiPPO(variant="
-                f"{variant!r}): drop `variant` from the hyperparameters or use --algo huri"
+                f"method={kwargs['method']!r} conflicts with the algorithm {method}, which is HuRiPPO(method="
+                f"{method!r}): drop `method` from the hyperparameters or use --algo huri"
             )
         HuRiPPO.__init__(self, *args, **kwargs)
 
     return type(
-        f"HuRiPPO[{variant}]",
+        f"HuRiPPO[{method}]",
         (HuRiPPO,),
-        {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(variant={variant!r})."},
+        {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(method={method!r})."},
     )
 
 

@@ -50,7 +50,7 @@ def preset_model(
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     kwargs = {**algorithm_kwargs(preset), **overrides}
-    return HuRiPPO(preset["policy"], env, variant=METHODS[method], seed=seed, **kwargs)
+    return HuRiPPO(preset["policy"], env, method=method, seed=seed, **kwargs)
 
 
 FIXED_BY_WEIGHTS = ("policy", "policy_kwargs", "n_quantiles")

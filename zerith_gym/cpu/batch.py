@@ -106,13 +106,19 @@ class ZerithBatch:
         kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
         unstable = self.sim.step(targets, force, drawn.force_target, kicks)
         out = self.task.after_physics(self.sim.sensordata, unstable)
-        policy, critic = out.policy_obs, out.critic_obs
         ended = np.flatnonzero(out.terminated | out.truncated) if autoreset else ()
-        if len(ended):  # the reset writes into the task's arrays: keep the step's values
-            policy, critic = policy.copy(), critic.copy()
-            policy[ended], critic[ended] = self.reset(ended)
+        if len(ended):  # the step's observations stay as they are: the reset writes into new arrays
+            self.reset(ended)
+        state = self.task.state
         return BatchStep(
-            out, force, command, policy, critic, self.task.state.command, level, self.task.task.reward_names
+            out,
+            force,
+            command,
+            state.policy_obs,
+            state.critic_obs,
+            state.command,
+            level,
+            self.task.task.reward_names,
         )
 
     def close(self) -> None:

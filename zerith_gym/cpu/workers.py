@@ -279,7 +279,7 @@ class WorkerPool:
                 payload = (local, local_seeds, local_commands, local_tiles)
                 messages[k] = pickle.dumps(("reset", payload))
         self._run(messages, "resetting")
-        return self._shared["policy_obs"][ids].copy(), self._shared["critic_obs"][ids].copy()
+        return self._shared["policy_obs"][ids], self._shared["critic_obs"][ids]  # indexing by an array copies
 
     def set_scenario(self, scenario: Scenario) -> None:
         """Every slice follows `scenario` from now on (see `ZerithBatch.set_scenario`)."""

@@ -47,7 +47,7 @@ FIGURE_DPI = 90
 METHOD_COLORS = {"huri": "tab:orange", BASELINE: "tab:blue"}
 
 
-PROTOCOL_STYLES = {"robust": "-", "paper": "--", "terrain": ":"}
+PROTOCOL_STYLES = {"robust": "-", "robust-256": "-.", "paper": "--", "terrain": ":"}
 
 
 @dataclass(frozen=True)

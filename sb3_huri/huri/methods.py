@@ -1,10 +1,14 @@
-"""The paper's methods as presets of HuRiPPO: each one is ``HuRiPPO(..., variant=name)``.
+"""The paper's methods as presets of HuRiPPO: each one is ``HuRiPPO(..., method=name)``.
 
-A preset and HuRiPPO's risk arguments together make its ``RiskModel`` (``sb3_huri.huri.risk``), where they
-are resolved and checked.
+A method's name is the same everywhere: HuRiPPO's ``method``, the RL Zoo algorithm (``--algo``), the
+experiment grid and the run folders (``runs/<method>/``, ``trained_agents/<method>/``). A preset and
+HuRiPPO's risk arguments together make its ``RiskModel`` (``sb3_huri.huri.risk``), where they are resolved
+and checked.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -24,11 +28,11 @@ class RiskPreset:
     use_rnd: bool = False
 
 
-VARIANTS: dict[str, RiskPreset] = {
+METHODS: dict[str, RiskPreset] = {
     # PPO: scalar critic, MSE value loss, GAE on the value; same asymmetric networks.
-    "baseline": RiskPreset(distributional=False),
+    "huri-baseline": RiskPreset(distributional=False),
     # Quantile critic, CVaR distortion at the fixed level alpha = cvar_alpha (0.5).
-    "cvar0.5": RiskPreset(distributional=True, distortion="cvar"),
+    "huri-cvar0.5": RiskPreset(distributional=True, distortion="cvar"),
     # Wang distortion with beta = beta_IQR only (paper: HuRi w/o RND).
     "huri-no-rnd": RiskPreset(distributional=True, distortion="wang", use_iqr=True),
     # Wang distortion with beta = wang_beta (0) + tanh(RND error) (paper A.5: HuRi w/o IQR).
@@ -38,6 +42,21 @@ VARIANTS: dict[str, RiskPreset] = {
     # Paper A.8: CVaR with alpha = alpha_IQR (1, or 0.5 above t_max) + tanh(RND error), clipped to 1.
     "huri-cvar": RiskPreset(distributional=True, distortion="cvar", use_iqr=True, use_rnd=True),
 }
+
+EARLIER_NAMES: dict[str, str] = {"baseline": "huri-baseline", "cvar0.5": "huri-cvar0.5"}
+"""The methods whose name differs in models saved before HuRiPPO's ``variant`` became ``method``: earlier
+name -> method (the others kept theirs)."""
+
+
+def method_of_saved(attributes: Mapping[str, Any]) -> str | None:
+    """The method of a saved model, from its attributes (a loaded model's ``__dict__``, or the data of its
+    zip): its ``method``, or for a model saved before ``variant`` became ``method`` its ``variant`` under
+    today's name (``baseline`` -> ``huri-baseline``, ``cvar0.5`` -> ``huri-cvar0.5``, the others unchanged).
+    None for a model with neither (one of SB3's own PPO)."""
+    if "variant" in attributes:
+        return EARLIER_NAMES.get(attributes["variant"], attributes["variant"])
+    return attributes.get("method")
+
 
 # Risk parameter below / within / above the IQR thresholds, per distortion (paper Algorithm 1 and A.8).
 DEFAULT_IQR_RISK_LEVELS: dict[str, tuple[float, float, float]] = {
