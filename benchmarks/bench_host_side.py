@@ -18,10 +18,10 @@ import numpy as np
 
 import zerith_gym
 from zerith_gym import robot
-from zerith_gym.callbacks import RewardTermsLogger
 from zerith_gym.contract import BatchStep
 from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
 from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.sb3.callbacks import RewardTermsLogger
 from zerith_gym.task import StepOutput
 
 

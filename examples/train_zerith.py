@@ -9,10 +9,10 @@
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
 `hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: a slice of robots per core),
 with the preset's `callback:` entries read as RL Zoo reads them: the reward-term logs
-(`zerith_gym.callbacks.RewardTermsLogger`) and the randomization curriculum
-(`zerith_gym.callbacks.RandomizationCurriculum`, which grows the randomization from none to the full
+(`zerith_gym.sb3.callbacks.RewardTermsLogger`) and the randomization curriculum
+(`zerith_gym.sb3.callbacks.RandomizationCurriculum`, which grows the randomization from none to the full
 training ranges; `--curriculum-steps N` replaces it), or on terrains (`-conf hyperparams/huri_terrain.yml`)
-the terrain curriculum (`zerith_gym.callbacks.TerrainCurriculum`). It adds resuming and periodic
+the terrain curriculum (`zerith_gym.sb3.callbacks.TerrainCurriculum`). It adds resuming and periodic
 checkpoints. The run is
 written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip` with
 `Zerith1-v0/config.yml`, `args.yml` and `vecnormalize.pkl`), so RL Zoo's tools read it:

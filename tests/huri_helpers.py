@@ -73,7 +73,7 @@ def tiny_robust_preset(folder: Path, n_timesteps: int = 384, name: str = "tiny.y
     preset = presets["Zerith1-v0"]
     preset.update(n_envs=4, n_steps=16, n_epochs=1, policy_kwargs="dict(net_arch=[16], log_std_init=-2.0)")
     preset["n_timesteps"] = n_timesteps
-    preset["callback"][1]["zerith_gym.callbacks.RandomizationCurriculum"] = dict(
+    preset["callback"][1]["zerith_gym.sb3.callbacks.RandomizationCurriculum"] = dict(
         steps=64, stages=4, max_fall_rate=1.0, gate_episodes=1
     )
     path = folder / name

@@ -33,7 +33,7 @@ from sb3_huri.zoo.checkpoints import (
 )
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
 from sb3_huri.zoo.presets import resume_overrides
-from zerith_gym.callbacks import RandomizationCurriculum
+from zerith_gym.sb3.callbacks import RandomizationCurriculum
 from zerith_gym.terrain_levels import LevelRule
 
 ROOT = Path(__file__).resolve().parent.parent

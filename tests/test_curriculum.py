@@ -10,9 +10,9 @@ from stable_baselines3 import PPO
 
 import zerith_gym
 from zerith_gym import Zerith1Env
-from zerith_gym.callbacks import RandomizationCurriculum
 from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
 from zerith_gym.randomization import NOMINAL
+from zerith_gym.sb3.callbacks import RandomizationCurriculum
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario
 
 
@@ -167,7 +167,7 @@ def test_update_threads_switch_by_phase_and_restore() -> None:
     import torch as th
     from stable_baselines3.common.callbacks import ConvertCallback
 
-    from zerith_gym.callbacks import UpdateThreads
+    from zerith_gym.sb3.callbacks import UpdateThreads
 
     env = zerith_gym.make_vec_env(2, seed=0, obs_mode="policy", episode_steps=16, workers=0)
     model = PPO(

@@ -48,8 +48,8 @@ Zerith1-v0:
   policy: MultiInputPolicy
   normalize: "dict(norm_obs=True, norm_reward=True)"
   callback:
-    - zerith_gym.callbacks.RewardTermsLogger
-    - zerith_gym.callbacks.RandomizationCurriculum:
+    - zerith_gym.sb3.callbacks.RewardTermsLogger
+    - zerith_gym.sb3.callbacks.RandomizationCurriculum:
         steps: 256
         stages: 2
   env_kwargs:

@@ -161,7 +161,7 @@ def test_a_checkpoint_saved_with_a_variant_and_loaded_by_sb3s_ppo_exports_its_me
 def test_the_quadruped_exports_with_its_own_layout_joints_and_gains(tmp_path: Path) -> None:
     """`Go2Like-v0`: the metadata is the quadruped's (from its `RobotSpec` and `LocomotionTask`)."""
     from zerith_gym import legged_gym_task, quadruped_robot
-    from zerith_gym.vec_env import make_vec_env
+    from zerith_gym.sb3.vec_env import make_vec_env
 
     venv = VecNormalize(make_vec_env(2, seed=0, robot="go2like", workers=0), norm_obs_keys=["policy"])
     model = HuRiPPO("MultiInputPolicy", venv, n_steps=16, policy_kwargs=dict(net_arch=[16]), device="cpu")

@@ -10,8 +10,8 @@ from gymnasium.utils.env_checker import check_env
 import zerith_gym  # noqa: F401
 from zerith_gym import legged_gym_task as lg
 from zerith_gym import quadruped_robot as quad
+from zerith_gym.sb3.vec_env import make_vec_env
 from zerith_gym.task import TaskState
-from zerith_gym.vec_env import make_vec_env
 
 
 def test_go2like_passes_gymnasiums_checker_and_stands_still_with_zero_actions() -> None:
@@ -176,7 +176,7 @@ def test_training_logs_the_quadrupeds_reward_terms(tmp_path) -> None:
     from stable_baselines3.common.logger import configure
 
     from sb3_huri import HuRiPPO
-    from zerith_gym.callbacks import RewardTermsLogger
+    from zerith_gym.sb3.callbacks import RewardTermsLogger
 
     env = make_vec_env(4, seed=0, robot="go2like", episode_steps=10, workers=0)
     model = HuRiPPO("MultiInputPolicy", env, n_steps=16, batch_size=64, n_epochs=1, seed=0)

@@ -13,8 +13,8 @@ from stable_baselines3.common.logger import configure
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from zerith_gym.callbacks import TerrainCurriculum
 from zerith_gym.physics import build_model
+from zerith_gym.sb3.callbacks import TerrainCurriculum
 from zerith_gym.scenarios import SCENARIOS, Scenario
 from zerith_gym.terrain import Terrain, TerrainSpec, tile_terrain
 from zerith_gym.terrain_levels import LevelRule, TerrainLevels, next_levels

@@ -274,7 +274,7 @@ def test_reward_terms_logger_writes_each_term_per_rollout(tmp_path):
 
     from stable_baselines3.common.logger import configure
 
-    from zerith_gym.callbacks import RewardTermsLogger
+    from zerith_gym.sb3.callbacks import RewardTermsLogger
 
     env = zerith_gym.make_vec_env(4, seed=0, obs_mode="policy", episode_steps=16, workers=0)
     model = PPO(

@@ -109,7 +109,7 @@ def test_train_writes_model_evaluations_and_tensorboard(zerith_run: Path) -> Non
     tags = set().union(*(EventAccumulator(str(path)).Reload().Tags()["scalars"] for path in events))
     assert (
         "terms/lin_vel_error" in tags
-    )  # the preset's `callback:` entry, zerith_gym.callbacks.RewardTermsLogger
+    )  # the preset's `callback:` entry, zerith_gym.sb3.callbacks.RewardTermsLogger
     model = HuRiPPO.load(run_folder / "Zerith1-v0.zip", device="cpu")
     assert model.method == "huri"
     assert model.num_timesteps >= 512

@@ -44,7 +44,7 @@ register(
 
 def __getattr__(name: str) -> Any:
     if name in ("ZerithVecEnv", "make_vec_env"):
-        from zerith_gym import vec_env
+        from zerith_gym.sb3 import vec_env
 
         return getattr(vec_env, name)
     raise AttributeError(f"module 'zerith_gym' has no attribute {name!r}")

@@ -130,7 +130,7 @@ def _callbacks(preset: dict[str, Any], request: RunRequest, stage: int | None) -
     `stage`; and the curriculum (or None)."""
     from rl_zoo3.utils import get_callback_list
 
-    from zerith_gym.callbacks import RandomizationCurriculum
+    from zerith_gym.sb3.callbacks import RandomizationCurriculum
 
     callbacks = get_callback_list(preset)
     if request.curriculum is not None:

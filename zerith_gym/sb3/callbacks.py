@@ -11,22 +11,22 @@
 
 From Python:
 
-    from zerith_gym.callbacks import RandomizationCurriculum, RewardTermsLogger
+    from zerith_gym.sb3.callbacks import RandomizationCurriculum, RewardTermsLogger
 
     model.learn(8_000_000, callback=[RewardTermsLogger(), RandomizationCurriculum(steps=6_000_000)])
 
 or in an RL Zoo hyperparameter file:
 
     callback:
-      - zerith_gym.callbacks.RewardTermsLogger
-      - zerith_gym.callbacks.RandomizationCurriculum:
+      - zerith_gym.sb3.callbacks.RewardTermsLogger
+      - zerith_gym.sb3.callbacks.RandomizationCurriculum:
           steps: 6000000
-      - zerith_gym.callbacks.UpdateThreads
+      - zerith_gym.sb3.callbacks.UpdateThreads
 
 and on terrains (`env_kwargs: {scenario: terrain}`):
 
     callback:
-      - zerith_gym.callbacks.TerrainCurriculum
+      - zerith_gym.sb3.callbacks.TerrainCurriculum
 """
 
 from __future__ import annotations
