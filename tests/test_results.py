@@ -367,3 +367,54 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
     row = next(line for line in page.splitlines() if line.startswith("| [quadruped-rough-huri-s0"))
     assert "| 0.75 [" in row and "| 0.50 [" in row and "| - |" in row  # 0.40 m, 0.45 m, nominal@0.5 missing
     assert "PPO 65%, HuRi 93%" in page  # the paper's Table 8 beside
+
+
+def _shape_run(folder: Path, steps: int, ret: float, fall: float, speed: float, rows: dict[int, float]):
+    """A run folder whose curve holds a constant return and fall rate, `speed` samples per second, and
+    robustness rows at the given steps."""
+    (folder / ENV).mkdir(parents=True)
+    (folder / ENV / "state.json").write_text(json.dumps({"timesteps": steps, "wall_s": steps / speed}))
+    for step in range(0, steps + 1, 100):
+        row = {"timesteps": step, "wall_s": step / speed, "ep_return": ret, "fall_rate": fall, "scale": 1.0}
+        append_row(folder, {**dict.fromkeys(CURVE_COLUMNS, math.nan), **row})
+    lines = ["timesteps,table1_mean,episodes"] + [f"{s},{m},10" for s, m in rows.items()]
+    (folder / "robustness.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_the_rollout_shape_section_holds_each_wide_seed_to_its_32_robot_seed(tmp_path: Path) -> None:
+    """`robust-256` runs against the `robust` run of their method and seed: values at every checkpoint,
+    the nearest robustness row, samples per second, and a t interval over seeds of the return difference."""
+    (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
+    _shape_run(tmp_path / "wide0", 2000, 110.0, 0.10, 10.0, {1000: 0.2, 2000: 0.3})
+    _shape_run(tmp_path / "wide1", 2000, 105.0, 0.20, 10.0, {1000: 0.1})
+    _shape_run(tmp_path / "ref0", 3000, 100.0, 0.15, 5.0, {900: 0.25, 2100: 0.35, 3000: 0.5})
+    _shape_run(tmp_path / "ref1", 2500, 97.0, 0.30, 5.0, {})
+    _shape_run(tmp_path / "paper0", 2000, 50.0, 0.5, 5.0, {})
+    entries = [
+        dict(name=name, protocol=protocol, method="huri", seed=seed, run=run, conf="preset.yml", steps=4000)
+        for name, protocol, seed, run in (
+            ("wide-s0", "robust-256", 0, "wide0"),
+            ("wide-s1", "robust-256", 1, "wide1"),
+            ("ref-s0", "robust", 0, "ref0"),
+            ("ref-s1", "robust", 1, "ref1"),
+            ("paper-s0", "paper", 0, "paper0"),
+        )
+    ]
+    queue = {"defaults": {"robustness_every": 1000}, "entries": entries}
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump(queue))
+    page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
+    section = page[page.index("## 8. Rollout shape") :]
+    table = [line for line in section.splitlines() if line.startswith("| HuRi |")]
+    assert table == [
+        "| HuRi | 0 | 0.0M | 110.0 | 100.0 | 0.10 | 0.15 | 0.200 | 0.250 |",
+        "| HuRi | 0 | 0.0M | 110.0 | 100.0 | 0.10 | 0.15 | 0.300 | 0.350 |",
+        "| HuRi | 1 | 0.0M | 105.0 | 97.0 | 0.20 | 0.30 | 0.100 | - |",
+        "| HuRi | 1 | 0.0M | 105.0 | 97.0 | 0.20 | 0.30 | - | - |",
+    ]
+    differences = np.array([10.0, 8.0])
+    half = stats.t.ppf(0.975, 1) * differences.std(ddof=1) / math.sqrt(2)
+    assert f"+9.0 [{9.0 - half:+.1f}, {9.0 + half:+.1f}]" in section
+    assert "no difference in learning per sample measured" in section  # [-3.7, +21.7] holds 0
+    assert "`../wide0` 10 samples/s, `../ref0` 5" in section
+    assert "paper0" not in section
+    assert (tmp_path / "docs" / "results" / "rollout_shape.png").stat().st_size > 10_000

@@ -12,7 +12,9 @@
 3. ``robustness.png``: every run's robustness learning curve (``robustness.csv``'s Table-1 mean);
 4. ``returns.png``: the training return against samples per method and protocol (Fig. 3 analog);
 5. ``tracking.png``: velocity-tracking errors under load, friction and both (Fig. 4 analog);
-6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog).
+6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog);
+7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog) and its Table 8 analog;
+8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed.
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.
@@ -33,6 +35,7 @@ from sb3_huri.experiments.results.figures import (
 )
 from sb3_huri.experiments.results.markdown import link
 from sb3_huri.experiments.results.quadruped import quadruped_section
+from sb3_huri.experiments.results.rollout_shape import rollout_shape_section
 from sb3_huri.experiments.results.tables import (
     findings_section,
     pairs_section,
@@ -70,6 +73,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
         *quadruped_section(quadruped, load_evaluations(quadruped), figures, out),
+        *rollout_shape_section(entries, figures, out),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")
     return out
