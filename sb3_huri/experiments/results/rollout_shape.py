@@ -74,8 +74,8 @@ def _cell(value: float, digits: int) -> str:
 
 def _checkpoints(wide: CampaignEntry, reference: CampaignEntry) -> list[int]:
     """Every ``robustness_every`` steps up to where both runs have got to."""
-    reached = min(int(read_curve(run)[-1]["timesteps"]) if read_curve(run) else 0
-                  for run in (wide.run, reference.run))  # fmt: skip
+    curves = (read_curve(run) for run in (wide.run, reference.run))
+    reached = min(int(rows[-1]["timesteps"]) if rows else 0 for rows in curves)
     every = wide.defaults.robustness_every
     return list(range(every, reached + 1, every))
 
