@@ -9,14 +9,21 @@ CPU, slowly, to check the pipeline. Printed, per number of robots:
 - `env`: env steps/s of `make_vec_env(n, backend="mjx")` under random actions: physics, the task, the
   in-step resets and the numpy hand-off with SB3's info dicts;
 - `ppo`, `huri`: env steps/s of the whole training loop (collection and updates, after a warm-up
-  iteration) with the env's preset in `hyperparams/huri.yml` (`--nets` overrides its networks, the
-  paper's [512, 256, 128] by default), the policy on torch's CUDA device where there is one;
+  iteration) with the env's preset in `hyperparams/huri.yml` or `--conf-file` (`--nets` and `--n-steps`
+  override its networks and rollout length), the policy on torch's CUDA device where there is one;
   `huri/ppo`: HuRiPPO's wall time per env step relative to SB3 PPO's.
 
 With `--profile`, a torch profiler table of one HuRiPPO update (energy distance, sorting, RND) follows.
+With `--split`, where the env's step time goes: the jitted step alone on the device (physics, task and the
+in-step resets, no transfer), the reset of every robot alone (what a step costs more when any episode
+ended), and the rest of the env's step (transfers, the VecEnv's bookkeeping, SB3's info dicts), in ms.
+
+On a GPU the first compile of the env's functions takes minutes (over 165 s at 4096 robots on an H100);
+`JAX_COMPILATION_CACHE_DIR` keeps them for the next process on that machine.
 
     python benchmarks/bench_mjx.py --num-envs 4096 16384 --iterations 3
     python benchmarks/bench_mjx.py --num-envs 16384 --solver 4 8 --profile
+    python benchmarks/bench_mjx.py --conf-file hyperparams/huri_robust.yml --n-steps 32  # the robust recipe
     python benchmarks/bench_mjx.py --num-envs 64 --iterations 1 --skip-training     # JAX on the CPU
 
 Set `XLA_PYTHON_CLIENT_PREALLOCATE=false` when torch shares the GPU with JAX (the script does).
@@ -70,8 +77,11 @@ def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec
     return steps * num_envs / (time.perf_counter() - start)
 
 
-def env_rate(num_envs: int, solver: SolverSettings, steps: int, env_kwargs: dict) -> float:
-    """Env steps/s of the MJX VecEnv under random actions (after the compiling first step)."""
+def env_rate(
+    num_envs: int, solver: SolverSettings, steps: int, env_kwargs: dict, split: bool = False
+) -> tuple[float, dict[str, float] | None]:
+    """Env steps/s of the MJX VecEnv under random actions (after the compiling first step), and with
+    `split` the step's parts (`split_step`)."""
     env = zerith_gym.make_vec_env(
         num_envs, seed=0, backend="mjx", solver_iterations=solver.iterations,
         ls_iterations=solver.ls_iterations, **env_kwargs,
@@ -83,13 +93,39 @@ def env_rate(num_envs: int, solver: SolverSettings, steps: int, env_kwargs: dict
     for t in range(steps):
         env.step(actions[t + 1])
     rate = steps * num_envs / (time.perf_counter() - start)
+    parts = split_step(env, steps) if split else None
     env.close()
-    return rate
+    return rate, parts
 
 
-def build(algo: str, preset: dict, env, net: list[int], device: str):
+def split_step(env, steps: int) -> dict[str, float]:
+    """ms per step of the env's jitted step alone, of the reset of every robot alone, and of the whole
+    VecEnv step, each after a compiling first call (random actions, the env already reset)."""
+    robots = env.robots
+    rng = np.random.default_rng(1)
+    actions = jnp.asarray(rng.uniform(-0.3, 0.3, (env.num_envs, 12)), robots.state.task.actions.dtype)
+
+    def timed(call) -> float:
+        jax.block_until_ready(call())
+        start = time.perf_counter()
+        for _ in range(steps):
+            result = call()
+        jax.block_until_ready(result)
+        return 1e3 * (time.perf_counter() - start) / steps
+
+    state = robots.state
+    step_ms = timed(lambda: robots._step(state, actions, robots.arrays))
+    overrides = jnp.full((env.num_envs, 3), jnp.nan, actions.dtype)
+    reset_ms = timed(lambda: robots._reset(jax.random.key(0), robots.arrays, overrides))
+    numpy_actions = np.asarray(actions)
+    env_ms = timed(lambda: env.step(numpy_actions))
+    return {"jitted step": step_ms, "reset all": reset_ms, "env step": env_ms}
+
+
+def build(algo: str, preset: dict, env, net: list[int] | None, device: str):
     kwargs = algorithm_kwargs(preset)
-    kwargs["policy_kwargs"] = dict(kwargs.get("policy_kwargs") or {}, net_arch=net)
+    if net:
+        kwargs["policy_kwargs"] = dict(kwargs.get("policy_kwargs") or {}, net_arch=net)
     if algo == "ppo":
         kwargs["batch_size"] = env.num_envs * kwargs["n_steps"] // kwargs.pop("n_minibatches")
         for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef", "desired_kl",
@@ -99,7 +135,7 @@ def build(algo: str, preset: dict, env, net: list[int], device: str):
     return HuRiPPO("MultiInputPolicy", env, seed=0, device=device, **kwargs)
 
 
-def train_rate(algo: str, preset: dict, env, net: list[int], iterations: int, device: str) -> float:
+def train_rate(algo: str, preset: dict, env, net: list[int] | None, iterations: int, device: str) -> float:
     """Env steps/s of `iterations` training iterations after a warm-up one."""
     model = build(algo, preset, env, net, device)
     per_iteration = env.num_envs * model.n_steps
@@ -131,21 +167,33 @@ def main() -> None:
     parser.add_argument("--solver", type=int, nargs=2, default=None, metavar=("ITERATIONS", "LS_ITERATIONS"))
     parser.add_argument("--iterations", type=int, default=3, help="timed training iterations")
     parser.add_argument("--steps", type=int, default=20, help="timed steps of raw physics and of the env")
-    parser.add_argument("--nets", type=int, nargs="+", default=[512, 256, 128])
+    parser.add_argument("--nets", type=int, nargs="+", default=None, help="default: the preset's")
+    parser.add_argument("--n-steps", type=int, default=None, help="rollout length (default: the preset's)")
+    parser.add_argument("--conf-file", default=None, help="hyperparameter file (default: the packaged one)")
     parser.add_argument("--skip-training", action="store_true")
     parser.add_argument("--profile", action="store_true", help="profile one HuRiPPO update")
+    parser.add_argument("--split", action="store_true", help="where the env's step time goes (ms)")
     args = parser.parse_args()
     solver = SolverSettings(*(args.solver or (None, None)))
     device = "cuda" if torch.cuda.is_available() else "cpu"
-    preset = read_preset(args.env)
+    preset = read_preset(args.env, args.conf_file)
+    if args.n_steps:
+        preset["n_steps"] = args.n_steps
     robot = robot_of(args.env)
     env_kwargs = {**(preset.get("env_kwargs") or {}), "robot": robot}
-    print(f"JAX device: {jax.devices()[0]}, torch device: {device}, solver {args.solver or 'of the MJCF'}")
+    print(
+        f"JAX device: {jax.devices()[0]}, torch device: {device}, solver {args.solver or 'of the MJCF'}, "
+        f"{args.conf_file or 'huri.yml'}: {args.env}, n_steps {preset['n_steps']}, "
+        f"nets {args.nets or 'preset'}"
+    )
     print(f"{'robots':>7} {'raw':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
     for n in args.num_envs:
         raw = raw_rate(n, solver, args.steps, locomotion_task(robot).robot)
-        env = env_rate(n, solver, args.steps, env_kwargs)
+        env, split = env_rate(n, solver, args.steps, env_kwargs, args.split)
         row = f"{n:>7} {raw:>9.0f} {env:>9.0f}"
+        if split:
+            print(f"{n:>7} robots, ms per step: " + ", ".join(f"{k} {v:.2f}" for k, v in split.items()))
+            print(f"{'':>7} raw physics alone: {1e3 * n / raw:.2f} ms per control step")
         if not args.skip_training:
             venv = VecNormalize(
                 zerith_gym.make_vec_env(

@@ -18,6 +18,7 @@ Both algorithms run with the preset's callbacks (RL Zoo reads them the same way)
     python benchmarks/bench_training.py --num-envs 32 64 --iterations 5
     python benchmarks/bench_training.py --workers 0 --physics-threads 1 2   # in-process env, for reference
     python benchmarks/bench_training.py --num-envs 256 1024 --threads 4     # a 16-core machine
+    python benchmarks/bench_training.py --num-envs 1024 --device cuda       # its networks on a GPU
     python benchmarks/bench_training.py --conf-file hyperparams/huri_robust.yml --num-envs 32 256 \
         --samples-per-update 16384 --workers 0 --algos huri-baseline huri   # one core, same update size
 
@@ -74,7 +75,7 @@ def make_env(preset: dict, kind: str, num_envs: int, seed: int, env_options: dic
     return VecNormalize(env, gamma=preset.get("gamma", 0.99), **(normalize_kwargs(preset) or {}))
 
 
-def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int):
+def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int, device: str = "cpu"):
     kwargs = algorithm_kwargs(preset)
     if net is not None:
         kwargs["policy_kwargs"] = dict(kwargs.get("policy_kwargs") or {}, net_arch=net)
@@ -83,15 +84,22 @@ def build(algo: str, preset: dict, env: VecEnv, net: list[int] | None, seed: int
         kwargs["batch_size"] = env.num_envs * kwargs["n_steps"] // n_minibatches
         for name in ("n_quantiles", "sr_lambda", "expectation_coef", "quantile_coef"):
             kwargs.pop(name, None)
-        return PPO("MultiInputPolicy", env, seed=seed, device="cpu", **kwargs)
-    return HuRiPPO("MultiInputPolicy", env, method=algo, seed=seed, device="cpu", **kwargs)
+        return PPO("MultiInputPolicy", env, seed=seed, device=device, **kwargs)
+    return HuRiPPO("MultiInputPolicy", env, method=algo, seed=seed, device=device, **kwargs)
 
 
 def train_rate(
-    algo: str, preset: dict, env: VecEnv, net: list[int] | None, iterations: int, seed: int, callbacks: bool
+    algo: str,
+    preset: dict,
+    env: VecEnv,
+    net: list[int] | None,
+    iterations: int,
+    seed: int,
+    callbacks: bool,
+    device: str = "cpu",
 ):
     """Env steps/s with updates over `iterations` iterations after a warm-up one, and the collecting share."""
-    model = build(algo, preset, env, net, seed)
+    model = build(algo, preset, env, net, seed, device)
     per_iteration = env.num_envs * model.n_steps
     callbacks = get_callback_list(preset) if callbacks else []  # reward-term logs, curriculum, threads
     model.learn(per_iteration, callback=callbacks)  # warm-up: allocations, first resets
@@ -124,6 +132,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch threads at the start")
     parser.add_argument("--no-callbacks", action="store_true", help="without the preset's callbacks")
     parser.add_argument("--conf-file", default=None, help="hyperparameter file (default: the packaged one)")
+    parser.add_argument("--device", default="cpu", help="torch device of the networks (cpu, cuda)")
     parser.add_argument(
         "--samples-per-update",
         type=int,
@@ -157,8 +166,9 @@ def main() -> None:
                         env = make_env(preset, args.vec, num_envs, args.seed, options)
                         used_workers = getattr(env.venv, "workers", "-")
                         rate, collecting = train_rate(
-                            algo, preset, env, net, args.iterations, args.seed, not args.no_callbacks
-                        )
+                            algo, preset, env, net, args.iterations, args.seed, not args.no_callbacks,
+                            args.device,
+                        )  # fmt: skip
                         env.close()
                         raw = float(np.mean([raw_before, raw_rate(num_envs, args.seed, cores, env_kwargs)]))
                         if algo == "ppo":
