@@ -9,6 +9,7 @@
 #
 #   bash benchmarks/device_wheels.sh          # here, once: the wheels the machine lacks, into .whl/
 #   bash benchmarks/device_figures.sh         # there, from the repository root, with .whl carried
+#                                             # (and .jax-cache.tgz, where an earlier call left one)
 #
 # The working tree and the wheels travel together, 64 MiB at most: when the committed runs make it larger,
 # move finished runs' folders out of the tree for the call.
@@ -23,6 +24,10 @@ if [ -d .whl ]; then
 fi
 unset MUJOCO_GL  # no EGL libraries on the bare machine; nothing here renders
 export PYTHONUNBUFFERED=1 JAX_COMPILATION_CACHE_DIR=/tmp/jax-cache
+# JAX's compiled functions from an earlier call (its $OUT/jax-cache.tgz, saved here as .jax-cache.tgz and
+# carried): a machine of the same kind and versions skips the minutes of compiling for unchanged code.
+mkdir -p /tmp/jax-cache
+[ -f .jax-cache.tgz ] && tar xzf .jax-cache.tgz -C /tmp/jax-cache
 { date -u; nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader; nproc;
   python3 -c "import jax, torch, mujoco; print('jax', jax.__version__, 'torch', torch.__version__, 'mujoco', mujoco.__version__)"; } \
     2>&1 | tee "$out/machine.txt"
@@ -51,4 +56,6 @@ section() { echo "=== $1 ($(date -u +%T))"; }
     timeout "$GPU_LARGE_S" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs 16384 \
         --iterations 2 --steps 10 --split
 } 2>&1 | grep -v -e "^USDT" -e "warp" | tee "$out/gpu_large.txt"
+tar czf "$out/jax-cache.tgz" -C /tmp/jax-cache . && [ "$(stat -c %s "$out/jax-cache.tgz")" -le 16000000 ] \
+    || rm -f "$out/jax-cache.tgz"  # what comes back: 16 MB a file at most
 section "done"
