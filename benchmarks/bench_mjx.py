@@ -4,8 +4,10 @@ PPO, on JAX's default device.
 Meant for a GPU machine (`pip install -e ".[mjx]"` and JAX's CUDA build); it also runs with JAX on the
 CPU, slowly, to check the pipeline. Printed, per number of robots:
 
-- `raw`: control steps/s of raw MJX physics of the env's own model (4 sub-steps, `jax.vmap` + `jit`, no
-  task), with the solver settings asked for;
+- `still`, `moving`: control steps/s of raw MJX physics of the env's own model (4 sub-steps, `jax.vmap` +
+  `jit`, no task), with the solver settings asked for, every robot standing at its default targets or
+  moving to random ones as the env's random actions move it (MJX's solver iterates until the whole
+  batch has converged: moving robots cost several times standing ones);
 - `env`: env steps/s of `make_vec_env(n, backend="mjx")` under random actions: physics, the task, the
   in-step resets and the numpy hand-off with SB3's info dicts;
 - `ppo`, `huri`: env steps/s of the whole training loop (collection and updates, after a warm-up
@@ -54,8 +56,11 @@ from zerith_gym.robots import locomotion_task
 from zerith_gym.terrain import PLANE, Terrain
 
 
-def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec) -> float:
-    """Control steps/s of raw MJX physics: every robot standing, default joint targets, no task."""
+def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec, moving: bool) -> float:
+    """Control steps/s of raw MJX physics of the nominal model, no task: every robot standing at the
+    default joint targets, or `moving`: targets drawn each step as the env's random actions draw them
+    (default + action scale x U[-0.3, 0.3]). MJX's solver iterates until every robot of the batch has
+    converged, so moving robots cost several times standing ones."""
     physics = MjxPhysics(Terrain(PLANE), solver, robot)
     model = physics.model
     fields = {  # the nominal model's fields, batched as the env batches them
@@ -64,15 +69,20 @@ def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec
     }
     qpos = jnp.broadcast_to(jnp.asarray(np.r_[0, 0, 0, 1, 0, 0, 0, robot.default_joint_pos]), (num_envs, 19))
     data = jax.jit(jax.vmap(physics.reset))(fields, qpos)
-    targets = jnp.broadcast_to(jnp.asarray(robot.default_joint_pos), (num_envs, 3, 12))
+    spread = 0.3 if moving else 0.0
+    offsets = np.random.default_rng(0).uniform(-spread, spread, (steps + 1, num_envs, 1, robot.num_joints))
+    targets = jnp.asarray(
+        np.broadcast_to(robot.default_joint_pos + robot.action_scale * offsets, (steps + 1, num_envs, 3, 12)),
+        jnp.float32,
+    )
     lags = jnp.zeros((num_envs, robot.decimation), jnp.int32)
     no_force = (jnp.zeros((num_envs, 3)), jnp.zeros(num_envs, jnp.int32), jnp.zeros((num_envs, 2)))
     step = jax.jit(jax.vmap(physics.control_step))
-    data, _ = step(fields, data, targets, lags, *no_force)  # compile
+    data, _ = step(fields, data, targets[0], lags, *no_force)  # compile
     jax.block_until_ready(data)
     start = time.perf_counter()
-    for _ in range(steps):
-        data, _ = step(fields, data, targets, lags, *no_force)
+    for t in range(steps):
+        data, _ = step(fields, data, targets[t + 1], lags, *no_force)
     jax.block_until_ready(data)
     return steps * num_envs / (time.perf_counter() - start)
 
@@ -186,14 +196,15 @@ def main() -> None:
         f"{args.conf_file or 'huri.yml'}: {args.env}, n_steps {preset['n_steps']}, "
         f"nets {args.nets or 'preset'}"
     )
-    print(f"{'robots':>7} {'raw':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
+    print(f"{'robots':>7} {'still':>9} {'moving':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
     for n in args.num_envs:
-        raw = raw_rate(n, solver, args.steps, locomotion_task(robot).robot)
+        still = raw_rate(n, solver, args.steps, locomotion_task(robot).robot, moving=False)
+        raw = raw_rate(n, solver, args.steps, locomotion_task(robot).robot, moving=True)
         env, split = env_rate(n, solver, args.steps, env_kwargs, args.split)
-        row = f"{n:>7} {raw:>9.0f} {env:>9.0f}"
+        row = f"{n:>7} {still:>9.0f} {raw:>9.0f} {env:>9.0f}"
         if split:
             print(f"{n:>7} robots, ms per step: " + ", ".join(f"{k} {v:.2f}" for k, v in split.items()))
-            print(f"{'':>7} raw physics alone: {1e3 * n / raw:.2f} ms per control step")
+            print(f"{'':>7} moving robots' physics alone: {1e3 * n / raw:.2f} ms per control step")
         if not args.skip_training:
             venv = VecNormalize(
                 zerith_gym.make_vec_env(
