@@ -186,7 +186,8 @@ def test_update_threads_switch_by_phase_and_restore() -> None:
     try:
 
         def during_rollout(locals_, globals_) -> bool:
-            seen["collect"].add(th.get_num_threads())
+            last = locals_["n_steps"] + 1 == locals_["n_rollout_steps"]
+            seen["update" if last else "collect"].add(th.get_num_threads())
             return True
 
         model.learn(64, callback=[UpdateThreads(collect=1, update=2), ConvertCallback(during_rollout)])
@@ -196,3 +197,35 @@ def test_update_threads_switch_by_phase_and_restore() -> None:
         th.set_num_threads(before)
     with pytest.raises(ValueError, match="positive integer"):
         UpdateThreads(collect=0)
+
+
+def test_update_threads_give_huri_rollout_end_work_the_update_threads() -> None:
+    """HuRiPPO's risk assessment of the rollout and its RND fit run before `on_rollout_end` reaches user
+    callbacks: they get the update's threads, the policy's per-step calls the collecting ones."""
+    import torch as th
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from sb3_huri import HuRiPPO
+    from zerith_gym.sb3.callbacks import UpdateThreads
+
+    env = VecNormalize(zerith_gym.make_vec_env(2, seed=0, episode_steps=16, workers=0))
+    model = HuRiPPO("MultiInputPolicy", env, n_steps=16, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8]))
+    assert model.policy.rnd is not None
+    seen: dict[str, set[int]] = {"act": set(), "finish": set(), "rnd fit": set()}
+
+    def recording(name, method):
+        def call(*args, **kwargs):
+            seen[name].add(th.get_num_threads())
+            return method(*args, **kwargs)
+
+        return call
+
+    model.policy.forward = recording("act", model.policy.forward)
+    model._finish_rollout = recording("finish", model._finish_rollout)
+    model.policy.rnd.fit = recording("rnd fit", model.policy.rnd.fit)
+    before = th.get_num_threads()
+    try:
+        model.learn(64, callback=UpdateThreads(collect=1, update=2))
+    finally:
+        th.set_num_threads(before)
+    assert seen == {"act": {1}, "finish": {2}, "rnd fit": {2}}

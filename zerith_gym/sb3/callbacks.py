@@ -245,12 +245,15 @@ class TerrainCurriculum(BaseCallback):
 
 
 class UpdateThreads(BaseCallback):
-    """Torch threads by phase: `collect` while rollouts are collected, `update` while the networks learn.
+    """Torch threads by phase: `collect` while robots are stepped, `update` from the rollout's last step on.
 
     While robots are stepped, the env's worker processes (or physics threads) use the cores, and a
-    second torch thread only competes with them (its threads spin between operations); while the
-    networks update, the workers sleep and torch can use every core. Default: 1 and every core. The
-    thread count of before training is restored at its end. Works with any SB3 on-policy algorithm.
+    second torch thread only competes with them (its threads spin between operations); once the last
+    step of a rollout is taken, the workers sleep and torch can use every core: for the last values and
+    the returns, HuRiPPO's risk assessment of every state and its RND predictor's fit (which run before
+    `on_rollout_end` reaches this callback), and the update. Default: 1 and every core. The thread count
+    of before training is restored at its end. Works with any SB3 on-policy algorithm (whose rollout loop
+    names `n_steps` and `n_rollout_steps`; otherwise the switch comes at `on_rollout_end`).
     """
 
     def __init__(self, collect: int = 1, update: int | None = None, verbose: int = 0) -> None:
@@ -272,6 +275,9 @@ class UpdateThreads(BaseCallback):
         th.set_num_threads(self.update)
 
     def _on_step(self) -> bool:
+        n_steps, n_rollout_steps = self.locals.get("n_steps"), self.locals.get("n_rollout_steps")
+        if n_steps is not None and n_rollout_steps is not None and n_steps + 1 >= n_rollout_steps:
+            th.set_num_threads(self.update)  # the rollout's last step is taken: the rest is update work
         return True
 
     def _on_training_end(self) -> None:
