@@ -100,6 +100,36 @@ def test_non_finite_or_misshapen_actions_are_rejected() -> None:
         env.step(np.zeros(13))
 
 
+def test_actions_reach_legged_gyms_clip_of_100_on_the_quadruped_and_1_on_zerith() -> None:
+    """legged_gym clips actions at +-100 (+-25 rad with its 0.25 scale): a quadruped action of 2 commands
+    0.5 rad from the default pose, not 0.25. Zerith-1 keeps its [-1, 1]."""
+    from gymnasium import spaces
+
+    from zerith_gym.task import action_targets
+
+    quadruped, humanoid = gym.make("Go2Like-v0"), gym.make("Zerith1-v0")
+    assert quadruped.action_space == spaces.Box(-100.0, 100.0, (12,), np.float32)
+    assert humanoid.action_space == spaces.Box(-1.0, 1.0, (12,), np.float32)
+    action = np.r_[np.full(6, 2.0), np.full(6, -150.0)]
+    for env, applied in (
+        (quadruped, np.r_[np.full(6, 2.0), np.full(6, -100.0)]),
+        (humanoid, np.r_[np.ones(6), -np.ones(6)]),
+    ):
+        env.reset(seed=0)
+        env.step(action)
+        task = env.unwrapped.task
+        np.testing.assert_array_equal(task.state.actions[0, 0], applied)
+    targets = action_targets(quadruped.unwrapped.task.state.actions, quad.GO2LIKE)
+    np.testing.assert_allclose(targets[0, 0, :6] - quad.DEFAULT_JOINT_POS[:6], 0.5)
+    venv = make_vec_env(2, robot="go2like", workers=0)
+    assert venv.action_space == quadruped.action_space
+    venv.reset()
+    venv.step(np.tile(action, (2, 1)))
+    np.testing.assert_array_equal(
+        venv.robots.task.state.actions[:, 0], np.tile(action.clip(-100, 100), (2, 1))
+    )
+
+
 def test_feet_air_time_pays_legged_gyms_formula_at_each_touchdown() -> None:
     """Random contact sequences through `judge`, against legged_gym's loop written out here."""
     rng = np.random.default_rng(0)

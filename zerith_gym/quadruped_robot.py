@@ -43,6 +43,11 @@ from it (the `home` keyframe)."""
 ACTION_SCALE = np.full(NUM_JOINTS, 0.25)
 """Joint-position offset (rad) produced by an action of +-1, per joint."""
 
+ACTION_CLIP = 100.0
+"""legged_gym's `clip_actions`: actions reach +-100 (+-25 rad of offset, so the torque limits bound them,
+not the clip). A clip at 1 (+-0.25 rad) holds the joints closer to the default pose than the robot's own
+weight bends them with kp 20 (up to 0.35 rad): a policy trained so saturated its actions and stood still."""
+
 # PD gains and torque limits: these must match the MJCF <default> classes (checked by the tests).
 KP = np.full(NUM_JOINTS, 20.0)
 KD = np.full(NUM_JOINTS, 0.5)
@@ -148,5 +153,6 @@ GO2LIKE = RobotSpec(
     physics_dt=PHYSICS_DT,
     control_dt=CONTROL_DT,
     sensor_layout=Sensors.layout,
+    action_clip=ACTION_CLIP,
 )
 """The Go2-like quadruped as the shared machinery reads it (`zerith_gym.robot_spec.RobotSpec`)."""

@@ -51,6 +51,8 @@ class RobotSpec:
     control_dt: float
     sensor_layout: Callable[[Any], Any]
     """`model -> Sensors` layout of slices of `data.sensordata` (each robot's `Sensors.layout`)."""
+    action_clip: float = 1.0
+    """The action space's bound: actions are clipped to [-action_clip, action_clip], then scaled."""
 
     @property
     def num_joints(self) -> int:

@@ -8,8 +8,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from zerith_gym import robot
 from zerith_gym.humanoid_task import HUMANOID_TASK
+from zerith_gym.robot import ZERITH1
+from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.task import LocomotionTask
 
 
@@ -29,16 +30,21 @@ def format_observation(obs_mode: str, policy: np.ndarray, critic: np.ndarray) ->
     return {"policy": policy, "critic": critic}
 
 
-ACTION_SPACE = spaces.Box(-1.0, 1.0, shape=(robot.NUM_JOINTS,), dtype=np.float32)
+def action_space(robot: RobotSpec = ZERITH1) -> spaces.Box:
+    """One robot's actions: a joint-position offset per joint, in units of its action scale, within
+    +-`robot.action_clip` (Zerith-1: 1; the quadruped: legged_gym's 100)."""
+    bound = robot.action_clip
+    return spaces.Box(-bound, bound, shape=(robot.num_joints,), dtype=np.float32)
 
 
-def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """Actions as float64 of `shape`, clipped to [-1, 1]; ValueError on a wrong shape or non-finite values."""
+def check_actions(actions: Any, shape: tuple[int, ...], clip: float = 1.0) -> np.ndarray:
+    """Actions as float64 of `shape`, clipped to [-clip, clip]; ValueError on a wrong shape or non-finite
+    values."""
     actions = np.array(actions, dtype=np.float64)
     if actions.shape != shape:
         raise ValueError(f"action must have shape {shape}, got {actions.shape}")
     if not np.isfinite(actions).all():
         raise ValueError(f"action contains NaN or infinite values: {actions}")
     return np.minimum(
-        np.maximum(actions, -1.0, out=actions), 1.0, out=actions
+        np.maximum(actions, -clip, out=actions), clip, out=actions
     )  # np.clip, without its overhead

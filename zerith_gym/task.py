@@ -234,7 +234,8 @@ def reset_values(
 
 
 def action_targets(actions: np.ndarray, robot: RobotSpec = robot.ZERITH1) -> np.ndarray:
-    """Joint targets (n, lags, 12) of an action history (n, lags, 12) in [-1, 1], newest first."""
+    """Joint targets (n, lags, 12) of an action history (n, lags, 12) within +-`robot.action_clip`, newest
+    first."""
     return robot.default_joint_pos + robot.action_scale * actions
 
 
@@ -598,7 +599,7 @@ class ZerithTask:
 
     # ------------------------------------------------------------------------------------- one step
     def before_physics(self, actions: np.ndarray) -> tuple[np.ndarray, Disturbances]:
-        """Record actions (n, 12), already finite and clipped to [-1, 1]; draw this step's randomness.
+        """Record actions (n, 12), finite and clipped to the action space; draw this step's randomness.
 
         Returns the joint targets of the last three actions (n, 3, 12) (index = control steps of lag) and
         this step's disturbances: the external force (n, 3) and its target (n,), and base velocity kicks.

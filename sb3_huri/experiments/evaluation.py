@@ -41,9 +41,8 @@ import numpy as np
 from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
 from zerith_gym.observations import layout_slices
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
-from zerith_gym.robot import CONTROL_DT
+from zerith_gym.robot import CONTROL_DT, ZERITH1
 from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
-from zerith_gym.spaces import ACTION_SPACE
 
 MIN_AIR_STEPS = 3
 """A foot must stay off the ground this many control steps (60 ms) for a step to count."""
@@ -155,7 +154,7 @@ class HoldStance:
 
     def predict(self, obs: dict[str, np.ndarray], deterministic: bool = True) -> tuple[np.ndarray, None]:
         robots = len(next(iter(obs.values())))
-        return np.zeros((robots, *ACTION_SPACE.shape), dtype=np.float32), None
+        return np.zeros((robots, ZERITH1.num_joints), dtype=np.float32), None
 
 
 @dataclass

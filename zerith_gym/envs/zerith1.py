@@ -12,7 +12,7 @@ from zerith_gym.cpu.batch import ZerithBatch
 from zerith_gym.infos import step_infos
 from zerith_gym.options import ZerithOptions, reset_command
 from zerith_gym.scenarios import SCENARIOS, Scenario, resolve_scenario
-from zerith_gym.spaces import ACTION_SPACE, check_actions, format_observation, observation_space
+from zerith_gym.spaces import action_space, check_actions, format_observation, observation_space
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule
 
@@ -97,7 +97,7 @@ class Zerith1Env(gym.Env):
             raise ValueError(f"unknown render_mode {render_mode!r}; valid values: None, {modes}")
         self.reward_names = self.options.task.reward_names
         self.observation_space = observation_space(self.options.obs_mode, self.options.task)
-        self.action_space = ACTION_SPACE
+        self.action_space = action_space(self.options.task.robot)
         self.obs_mode = self.options.obs_mode
         self.render_mode = render_mode
         self.robots = ZerithBatch(1, self.options)
@@ -128,7 +128,8 @@ class Zerith1Env(gym.Env):
             raise RuntimeError(
                 f"{type(self).__name__}.step() called before reset() or after the episode ended"
             )
-        step = self.robots.step(check_actions(action, self.action_space.shape)[None], autoreset=False)
+        actions = check_actions(action, self.action_space.shape, self.options.task.robot.action_clip)
+        step = self.robots.step(actions[None], autoreset=False)
         out = step.out
         self._episode_terms += out.terms[0]
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])

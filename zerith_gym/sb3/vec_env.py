@@ -41,7 +41,7 @@ from zerith_gym.cpu.workers import WorkerPool, default_workers
 from zerith_gym.infos import step_infos
 from zerith_gym.options import ZerithOptions, reset_command
 from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.spaces import ACTION_SPACE, check_actions, format_observation, observation_space
+from zerith_gym.spaces import action_space, check_actions, format_observation, observation_space
 from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
 from zerith_gym.terrain_levels import LevelRule, check_tile
 
@@ -107,8 +107,10 @@ class ZerithVecEnv(VecEnv):
         self.obs_mode = self.options.obs_mode
         self.render_mode = None
         self.reward_names = self.options.task.reward_names
-        super().__init__(num_envs, observation_space(self.obs_mode, self.options.task), ACTION_SPACE)
-        self._action_shape = (num_envs, *ACTION_SPACE.shape)
+        robot_actions = action_space(self.options.task.robot)
+        super().__init__(num_envs, observation_space(self.obs_mode, self.options.task), robot_actions)
+        self._action_shape = (num_envs, *robot_actions.shape)
+        self._action_clip = self.options.task.robot.action_clip
         self._actions = np.zeros(self._action_shape)
         self._returns = np.zeros(num_envs)
         self._lengths = np.zeros(num_envs, dtype=int)
@@ -145,7 +147,7 @@ class ZerithVecEnv(VecEnv):
             raise RuntimeError(
                 "ZerithVecEnv: call reset() before the first step (the robots are not placed yet)"
             )
-        self._actions = check_actions(actions, self._action_shape)
+        self._actions = check_actions(actions, self._action_shape, self._action_clip)
 
     def step_wait(self) -> VecEnvStepReturn:
         step = self.robots.step(self._actions)
