@@ -141,8 +141,8 @@ class MjxBatch:
         return np.asarray(self.state.task.command, dtype=float)
 
     def step(self, actions: np.ndarray) -> BatchStep:
-        """One control step of every robot with checked actions (n, 12) in [-1, 1]; robots whose episode
-        ended restart inside the step."""
+        """One control step of every robot with checked actions (n, 12), within the action space; robots
+        whose episode ended restart inside the step."""
         if self.state is None:
             raise RuntimeError("reset the robots before stepping them")
         self.state, step = self._step(self.state, jnp.asarray(actions, _real()), self.arrays)
