@@ -32,20 +32,22 @@ mkdir -p /tmp/jax-cache
   python3 -c "import jax, torch, mujoco; print('jax', jax.__version__, 'torch', torch.__version__, 'mujoco', mujoco.__version__)"; } \
     2>&1 | tee "$out/machine.txt"
 robust=(--conf-file hyperparams/huri_robust.yml)
+gpu_robots=${GPU_ROBOTS:-4096}         # smaller for a trial run of this script on a CPU
+read -r -a cpu_robots <<< "${CPU_ROBOTS:-32 256 1024}"
 section() { echo "=== $1 ($(date -u +%T))"; }
 # The first compile of the env's functions on the GPU takes minutes (over 165 s at 4096 robots on an H100,
 # 2026-11-27); JAX_COMPILATION_CACHE_DIR keeps them for the next process on the same machine only.
 {
-    section "MJX, 4096 robots x 32 steps"
-    timeout "${GPU_SMALL_S:-280}" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs 4096 \
+    section "MJX, $gpu_robots robots x 32 steps"
+    timeout "${GPU_SMALL_S:-280}" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs "$gpu_robots" \
         --iterations 2 --steps 10 --split --profile
 } 2>&1 | grep -v -e "^USDT" -e "warp" | tee "$out/gpu.txt"
 {
     section "CPU backend, all cores, 16384 samples per update"
-    timeout "${CPU_ALL_S:-90}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs 32 256 1024 \
+    timeout "${CPU_ALL_S:-90}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[@]}" \
         --samples-per-update 16384 --algos huri-baseline huri --iterations 2
     section "CPU backend, all cores, the networks on the GPU"
-    timeout "${CPU_GPU_S:-60}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs 1024 \
+    timeout "${CPU_GPU_S:-60}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[-1]}" \
         --samples-per-update 16384 --algos huri-baseline huri --iterations 2 --device cuda
     section "CPU backend, 2 cores (taskset), the 32 x 512 recipe"
     timeout "${CPU_TWO_S:-55}" taskset -c 0,1 python3 benchmarks/bench_training.py "${robust[@]}" --num-envs 32 \
