@@ -39,23 +39,23 @@ section() { echo "=== $1 ($(date -u +%T))"; }
 # 2026-11-27); JAX_COMPILATION_CACHE_DIR keeps them for the next process on the same machine only.
 {
     section "MJX, $gpu_robots robots x 32 steps"
-    timeout "${GPU_SMALL_S:-280}" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs "$gpu_robots" \
+    timeout -k 10 "${GPU_SMALL_S:-280}" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs "$gpu_robots" \
         --iterations 2 --steps 10 --split --profile
 } 2>&1 | grep -v -e "^USDT" -e "warp" | tee "$out/gpu.txt"
 {
     section "CPU backend, all cores, 16384 samples per update"
-    timeout "${CPU_ALL_S:-90}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[@]}" \
+    timeout -k 10 "${CPU_ALL_S:-90}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[@]}" \
         --samples-per-update 16384 --algos huri-baseline huri --iterations 2
     section "CPU backend, all cores, the networks on the GPU"
-    timeout "${CPU_GPU_S:-60}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[-1]}" \
+    timeout -k 10 "${CPU_GPU_S:-60}" python3 benchmarks/bench_training.py "${robust[@]}" --num-envs "${cpu_robots[-1]}" \
         --samples-per-update 16384 --algos huri-baseline huri --iterations 2 --device cuda
     section "CPU backend, 2 cores (taskset), the 32 x 512 recipe"
-    timeout "${CPU_TWO_S:-55}" taskset -c 0,1 python3 benchmarks/bench_training.py "${robust[@]}" --num-envs 32 \
+    timeout -k 10 "${CPU_TWO_S:-55}" taskset -c 0,1 python3 benchmarks/bench_training.py "${robust[@]}" --num-envs 32 \
         --algos huri-baseline huri --iterations 2
 } 2>&1 | tee "$out/cpu.txt"
 [ "${GPU_LARGE_S:-0}" -gt 0 ] && {  # its compile takes minutes more: only where asked (GPU_LARGE_S=...)
     section "MJX, 16384 robots x 32 steps"
-    timeout "$GPU_LARGE_S" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs 16384 \
+    timeout -k 10 "$GPU_LARGE_S" python3 benchmarks/bench_mjx.py "${robust[@]}" --n-steps 32 --num-envs 16384 \
         --iterations 2 --steps 10 --split
 } 2>&1 | grep -v -e "^USDT" -e "warp" | tee "$out/gpu_large.txt"
 tar czf "$out/jax-cache.tgz" -C /tmp/jax-cache . && [ "$(stat -c %s "$out/jax-cache.tgz")" -le 16000000 ] \

@@ -269,6 +269,38 @@ def test_worker_failures_and_closing_give_clear_errors():
         venv.reset()
 
 
+def test_workers_end_when_the_process_that_made_them_is_killed():
+    """A SIGKILL (or a SIGTERM the process does not handle) closes nothing: the workers must notice that
+    their maker is gone instead of waiting on its pipes forever, holding the caller's output open."""
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "import os, signal, numpy as np, zerith_gym\n"
+        "env = zerith_gym.make_vec_env(4, seed=0, workers=2)\n"
+        "env.reset(); env.step(np.zeros((4, 12)))\n"
+        "print(' '.join(str(p.pid) for p in env.robots._processes), flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == -9, run.stderr
+    workers = [int(pid) for pid in run.stdout.split()]
+    assert len(workers) == 2
+
+    def alive(pid: int) -> bool:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has ended
+        except FileNotFoundError:
+            return False
+
+    deadline = time.monotonic() + 10
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(alive(pid) for pid in workers)
+
+
 def test_reward_terms_logger_writes_each_term_per_rollout(tmp_path):
     import csv
 

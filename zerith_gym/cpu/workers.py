@@ -55,6 +55,9 @@ MIN_ROBOTS_PER_WORKER = 8
 
 _STEP, _OK = b"s", b"k"
 
+_PARENT_CHECK_S = 1.0
+"""How often (s) an idle worker checks that the process that made it is still alive."""
+
 
 def available_cores() -> int:
     """CPU cores this process may run on."""
@@ -187,7 +190,10 @@ def _serve(
     options: ZerithOptions,
     physics_threads: int,
 ) -> None:
-    """A worker's life: build its batch of robots [rows), then answer messages until `close`."""
+    """A worker's life: build its batch of robots [rows), then answer messages until `close`, or until
+    the process that made it is gone without closing it (killed, or stopped by a signal it does not
+    handle): forked workers inherit the pool's ends of the pipes, so they would never see them close."""
+    maker = os.getppid()
     # Signals to the caller's process group (Ctrl-C, `timeout`, `kill -- -PGID`) are the caller's to handle:
     # it stops at its next step, saves, and closes the pool. A worker that took them would die first.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -203,6 +209,9 @@ def _serve(
     going = True
     while going:
         try:
+            while not conn.poll(_PARENT_CHECK_S):
+                if os.getppid() != maker:
+                    return
             message = conn.recv_bytes()
         except (EOFError, KeyboardInterrupt):
             break
