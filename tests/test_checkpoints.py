@@ -273,3 +273,19 @@ def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_p
     assert workers, "the trainer should have started a worker process"
     for pid in workers:  # closed by the trainer, not left behind
         assert not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text()
+
+
+def test_hardware_names_the_processor_once(monkeypatch):
+    import platform
+
+    from sb3_huri.zoo import checkpoints
+
+    monkeypatch.setattr(platform, "machine", lambda: "x86_64")
+    monkeypatch.setattr(platform, "processor", lambda: "x86_64")  # as on many Linux machines
+    monkeypatch.setattr(checkpoints.os, "cpu_count", lambda: 16)
+    assert checkpoints.hardware().startswith("x86_64 16 cores, ")
+    monkeypatch.setattr(platform, "processor", lambda: "")
+    assert checkpoints.hardware().startswith("x86_64 16 cores, ")
+    monkeypatch.setattr(platform, "machine", lambda: "arm64")
+    monkeypatch.setattr(platform, "processor", lambda: "arm")
+    assert checkpoints.hardware().startswith("arm64 arm 16 cores, ")

@@ -122,9 +122,8 @@ def _mean_level(env: VecEnv) -> float:
 def hardware() -> str:
     """This machine in a few words: processor, cores, torch device."""
     device = th.cuda.get_device_name(0) if th.cuda.is_available() else "no GPU"
-    return f"{platform.machine()} {platform.processor() or ''} {os.cpu_count()} cores, {device}".replace(
-        "  ", " "
-    )
+    names = dict.fromkeys(name for name in (platform.machine(), platform.processor()) if name)  # often equal
+    return f"{' '.join(names)} {os.cpu_count()} cores, {device}".strip()
 
 
 def restore_random_states(run: str | os.PathLike, env_id: str = DEFAULT_ENV_ID) -> bool:
