@@ -56,11 +56,11 @@ from zerith_gym.robots import locomotion_task
 from zerith_gym.terrain import PLANE, Terrain
 
 
-def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec, moving: bool) -> float:
-    """Control steps/s of raw MJX physics of the nominal model, no task: every robot standing at the
-    default joint targets, or `moving`: targets drawn each step as the env's random actions draw them
-    (default + action scale x U[-0.3, 0.3]). MJX's solver iterates until every robot of the batch has
-    converged, so moving robots cost several times standing ones."""
+def raw_rates(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec) -> tuple[float, float]:
+    """Control steps/s of raw MJX physics of the nominal model, no task, with one compiled step: every
+    robot standing at the default joint targets, then moving, with targets drawn each step as the env's
+    random actions draw them (default + action scale x U[-0.3, 0.3]). MJX's solver iterates until every
+    robot of the batch has converged, so moving robots cost several times standing ones."""
     physics = MjxPhysics(Terrain(PLANE), solver, robot)
     model = physics.model
     fields = {  # the nominal model's fields, batched as the env batches them
@@ -68,23 +68,27 @@ def raw_rate(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec
         for name in RANDOMIZED_FIELDS
     }
     qpos = jnp.broadcast_to(jnp.asarray(np.r_[0, 0, 0, 1, 0, 0, 0, robot.default_joint_pos]), (num_envs, 19))
-    data = jax.jit(jax.vmap(physics.reset))(fields, qpos)
-    spread = 0.3 if moving else 0.0
-    offsets = np.random.default_rng(0).uniform(-spread, spread, (steps + 1, num_envs, 1, robot.num_joints))
-    targets = jnp.asarray(
-        np.broadcast_to(robot.default_joint_pos + robot.action_scale * offsets, (steps + 1, num_envs, 3, 12)),
-        jnp.float32,
-    )
+    start = jax.jit(jax.vmap(physics.reset))(fields, qpos)
     lags = jnp.zeros((num_envs, robot.decimation), jnp.int32)
     no_force = (jnp.zeros((num_envs, 3)), jnp.zeros(num_envs, jnp.int32), jnp.zeros((num_envs, 2)))
     step = jax.jit(jax.vmap(physics.control_step))
-    data, _ = step(fields, data, targets[0], lags, *no_force)  # compile
-    jax.block_until_ready(data)
-    start = time.perf_counter()
-    for t in range(steps):
-        data, _ = step(fields, data, targets[t + 1], lags, *no_force)
-    jax.block_until_ready(data)
-    return steps * num_envs / (time.perf_counter() - start)
+    offsets = np.random.default_rng(0).uniform(-0.3, 0.3, (steps + 1, num_envs, 1, robot.num_joints))
+    rates = []
+    for spread in (0.0, 1.0):
+        targets = jnp.asarray(
+            np.broadcast_to(
+                robot.default_joint_pos + spread * robot.action_scale * offsets, (steps + 1, num_envs, 3, 12)
+            ),
+            jnp.float32,
+        )
+        data, _ = step(fields, start, targets[0], lags, *no_force)  # compiles on the first pass
+        jax.block_until_ready(data)
+        began = time.perf_counter()
+        for t in range(steps):
+            data, _ = step(fields, data, targets[t + 1], lags, *no_force)
+        jax.block_until_ready(data)
+        rates.append(steps * num_envs / (time.perf_counter() - began))
+    return rates[0], rates[1]
 
 
 def env_rate(
@@ -198,8 +202,7 @@ def main() -> None:
     )
     print(f"{'robots':>7} {'still':>9} {'moving':>9} {'env':>9} {'ppo':>9} {'huri':>9} {'huri/ppo':>9}")
     for n in args.num_envs:
-        still = raw_rate(n, solver, args.steps, locomotion_task(robot).robot, moving=False)
-        raw = raw_rate(n, solver, args.steps, locomotion_task(robot).robot, moving=True)
+        still, raw = raw_rates(n, solver, args.steps, locomotion_task(robot).robot)
         env, split = env_rate(n, solver, args.steps, env_kwargs, args.split)
         row = f"{n:>7} {still:>9.0f} {raw:>9.0f} {env:>9.0f}"
         if split:
