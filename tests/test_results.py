@@ -357,6 +357,7 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
                             run=f"quadruped-rough/{method}/{go2}_1", steps=640))  # fmt: skip
     survived = {"platform-0.40": [1, 1, 0, 1], "platform-0.45": [1, 0, 0, 1], "nominal@1": [1] * 4}
     cases = {case: {"survived": alive, "fall_step": [None] * 4} for case, alive in survived.items()}
+    cases["nominal@1"]["vx"] = 0.968
     record = {"entry": entries[0]["name"], "steps": 640, "cases": cases, "settings": {"episodes": 4}}
     (tmp_path / entries[0]["run"] / "evaluations").mkdir()
     (tmp_path / entries[0]["run"] / "evaluations" / "640.json").write_text(json.dumps(record))
@@ -366,6 +367,7 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
     assert (tmp_path / "docs" / "results" / "quadruped.png").stat().st_size > 10_000
     row = next(line for line in page.splitlines() if line.startswith("| [quadruped-rough-huri-s0"))
     assert "| 0.75 [" in row and "| 0.50 [" in row and "| - |" in row  # 0.40 m, 0.45 m, nominal@0.5 missing
+    assert row.endswith("| 0.97 | - |")  # forward velocity at 1 m/s; none at 0.5 m/s
     assert "PPO 65%, HuRi 93%" in page  # the paper's Table 8 beside
 
 

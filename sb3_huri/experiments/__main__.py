@@ -14,7 +14,7 @@ unfinished run from its last checkpoint and skips the finished ones. ``--backend
 Ray tasks on the cluster of ``RAY_ADDRESS`` (or ``--ray-address``), with the output folder shared by its
 machines. ``report`` writes ``DIR/report.md`` with the tables, figures and the paper's numbers.
 
-``campaign`` trains the long runs of the queue ``runs/campaign.yml`` in the background of every session,
+``campaign`` trains the long runs of the queue ``runs/campaign.yml`` in the background, stretch after stretch,
 resumable (``sb3_huri.experiments.campaign``); ``results`` writes ``docs/results.md`` and its figures from
 the queue's run folders (``sb3_huri.experiments.results``).
 """

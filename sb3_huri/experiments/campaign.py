@@ -1,4 +1,4 @@
-"""The training campaign: the queue's unfinished entries trained in the background, across sessions.
+"""The training campaign: the queue's unfinished entries trained in the background, one stretch after another.
 
     python -m sb3_huri.experiments campaign                       # train the queue (runs/campaign.yml)
     python -m sb3_huri.experiments campaign --max-wall-minutes 150

@@ -64,7 +64,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         f"{entries[0].defaults.eval_seed if entries else '-'} + i, the same robots for every agent), "
         "20-s episodes at 1 m/s, success = no fall.",
         "",
-        *findings_section(entries, evaluations),
+        *findings_section(every_entry, evaluations),
         *status_section(every_entry, evaluations, out),
         *table1_section(evaluations),
         *pairs_section(entries, evaluations),

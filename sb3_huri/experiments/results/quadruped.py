@@ -57,6 +57,7 @@ def _plot_quadruped(path: Path, curves: dict[Path, CampaignEntry]) -> None:
 
     figure = Figure(figsize=(11, 4), layout="constrained")
     returns, levels = figure.subplots(1, 2)
+    on_tiles = False
     for run, entry in curves.items():
         style = {"linestyle": "-" if entry.method == "huri" else "--"}
         steps, values = smoothed_curve(run)
@@ -64,6 +65,9 @@ def _plot_quadruped(path: Path, curves: dict[Path, CampaignEntry]) -> None:
         level_steps, level = smoothed_curve(run, column="terrain_level")
         if len(level_steps):
             levels.plot(level_steps / 1e6, level, color=line.get_color(), label=_label(entry), **style)
+            on_tiles = True
+    if not on_tiles:
+        levels.text(0.5, 0.5, "no run on terrains yet", ha="center", va="center", transform=levels.transAxes)
     returns.set(xlabel="samples (M)", ylabel="training return (A)")
     levels.set(xlabel="samples (M)", ylabel="mean terrain level (B)")
     returns.legend(fontsize="small")
@@ -75,15 +79,22 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
     shown = [e for e in evaluations if e.entry.protocol == "quadruped"]
     if not shown:
         return ["No quadruped agent has its final evaluation yet (Table 8 analog).", ""]
+    walking = [case for case in QUADRUPED_CASES if "@" in case]
     lines = [
-        "| agent | " + " | ".join(QUADRUPED_CASES) + " |",
-        "|---|" + "---|" * len(QUADRUPED_CASES),
+        "Survival per case with its 95% Wilson interval, and the mean forward velocity (m/s) under each "
+        "walking case's command:",
+        "",
+        "| agent | " + " | ".join([*QUADRUPED_CASES, *(f"vx, {case}" for case in walking)]) + " |",
+        "|---|" + "---|" * (len(QUADRUPED_CASES) + len(walking)),
     ]
     for evaluated in shown:
         cells = []
         for case in QUADRUPED_CASES:
             survived = evaluated.survived(case)
             cells.append("-" if survived is None else share_cell(float(np.mean(survived)), len(survived)))
+        for case in walking:
+            vx = evaluated.metric(case, "vx")
+            cells.append("-" if not np.isfinite(vx) else f"{vx:.2f}")
         lines.append(f"| [{evaluated.label}]({link(evaluated.path, out)}) | " + " | ".join(cells) + " |")
     paper = ", ".join(
         f"{case}: PPO {values['huri-baseline']:.0f}%, HuRi {values['huri']:.0f}%"
