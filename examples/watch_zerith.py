@@ -1,18 +1,19 @@
-"""Watch trained Zerith-1 agents walk, record them, and print their survival and velocity tracking.
+"""Watch trained agents walk, record them, and print their survival and velocity tracking.
 
-    python examples/watch_zerith.py                                        # both shipped agents, 0.5 m/s
+    python examples/watch_zerith.py                                        # the shipped agents, 0.5 m/s
     python examples/watch_zerith.py trained_agents/huri-baseline/Zerith1-v0_1 --vx 1.0
+    python examples/watch_zerith.py trained_agents/huri/Go2Like-v0_1 --vx 1.0  # the quadruped
     python examples/watch_zerith.py --scenario sudden-centroid --episodes 5
     MUJOCO_GL=egl python examples/watch_zerith.py --video videos/       # headless: an mp4 per episode
     python examples/watch_zerith.py --render                               # a MuJoCo window
 
-By default both shipped agents run, one after the other: HuRi (`trained_agents/huri/Zerith1-v0_1`) and the
-PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`); both walk at the 0.5 m/s command
-(docs/training.md).
+By default the shipped agents run, one after the other: Zerith-1's HuRi (`trained_agents/huri/Zerith1-v0_1`)
+and PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`), both walking at the 0.5 m/s command
+(docs/training.md), then the quadruped's HuRi agent (`trained_agents/huri/Go2Like-v0_1`, docs/go2like.md).
 An agent is a run folder in RL Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`):
-`Zerith1-v0.zip` and `Zerith1-v0/vecnormalize.pkl`. The policy is deterministic (and `nominal` randomizes
-nothing, so its episodes are all the same). Each episode prints its length, whether the robot fell, its
-mean forward velocity and its mean forward-velocity error.
+`<env id>.zip` and `<env id>/vecnormalize.pkl`, the env id `Zerith1-v0` or `Go2Like-v0`. The policy is
+deterministic (and `nominal` randomizes nothing, so its episodes are all the same). Each episode prints its
+length, whether the robot fell, its mean forward velocity and its mean forward-velocity error.
 `benchmarks/eval_agents.py` evaluates agents on many episodes and every scenario.
 """
 
@@ -27,12 +28,15 @@ import torch as th
 
 import zerith_gym
 from sb3_huri.zoo import load_run
-from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
+from zerith_gym.observations import layout_slices
 
-ENV_ID = "Zerith1-v0"
+ENV_IDS = ("Zerith1-v0", "Go2Like-v0")
 SHIPPED = Path(__file__).resolve().parent.parent / "trained_agents"
-DEFAULT_AGENTS = [SHIPPED / "huri" / f"{ENV_ID}_1", SHIPPED / "huri-baseline" / f"{ENV_ID}_1"]
-_BASE_VELOCITY = layout_slices(CRITIC_LAYOUT)["base_linear_velocity"]
+DEFAULT_AGENTS = [
+    SHIPPED / "huri" / "Zerith1-v0_1",
+    SHIPPED / "huri-baseline" / "Zerith1-v0_1",
+    SHIPPED / "huri" / "Go2Like-v0_1",
+]
 
 
 def main() -> None:
@@ -58,26 +62,39 @@ def main() -> None:
 
     vx = args.vx if args.vx is not None else (0.5 if args.scenario in ("train", "nominal") else None)
     command = None if vx is None else (vx, 0.0, 0.0)
-    for agent in args.agents:
-        model_path = agent / f"{ENV_ID}.zip"
-        if not model_path.is_file():
-            parser.error(f"{model_path} not found: an agent is a run folder holding {ENV_ID}.zip")
-        watch(agent, command, args)
+    agents = [(agent, env_id_of(agent)) for agent in args.agents]
+    for agent, env_id in agents:
+        if env_id is None:
+            parser.error(
+                f"{agent} holds no agent: a run folder holds <env id>.zip, the env id one of "
+                + ", ".join(ENV_IDS)
+            )
+    for agent, env_id in agents:
+        watch(agent, env_id, command, args)
 
 
-def watch(agent: Path, command: tuple[float, float, float] | None, args: argparse.Namespace) -> None:
+def env_id_of(agent: Path) -> str | None:
+    """The env the run folder's agent was trained on (the name of its model file), None if it has none."""
+    return next((env_id for env_id in ENV_IDS if (agent / f"{env_id}.zip").is_file()), None)
+
+
+def watch(
+    agent: Path, env_id: str, command: tuple[float, float, float] | None, args: argparse.Namespace
+) -> None:
     """Run one agent for ``args.episodes`` episodes and print what it did."""
     render_mode = "human" if args.render else "rgb_array" if args.video else None
-    env = gym.make(ENV_ID, scenario=args.scenario, command=command, render_mode=render_mode)
+    env = gym.make(env_id, scenario=args.scenario, command=command, render_mode=render_mode)
+    task = env.unwrapped.options.task  # the robot's critic layout and scales
+    base_velocity = layout_slices(task.critic_layout)["base_linear_velocity"]
     if args.video:
         env = gym.wrappers.RecordVideo(
             env,
-            str(args.video / agent.parent.name),
+            str(args.video / f"{agent.parent.name}-{env_id}"),
             name_prefix=args.scenario,
             episode_trigger=lambda _: True,
             disable_logger=True,
         )
-    model, normalizer = load_run(agent, ENV_ID)
+    model, normalizer = load_run(agent, env_id)
 
     print(f"agent {agent} ({model.method}), scenario {args.scenario}")
     survived = 0
@@ -89,7 +106,7 @@ def watch(agent: Path, command: tuple[float, float, float] | None, args: argpars
             policy_obs = normalizer.normalize_obs(obs) if normalizer is not None else obs
             action, _ = model.predict(policy_obs, deterministic=True)
             obs, _, terminated, truncated, info = env.step(action)
-            velocities.append(critic_in_units(obs["critic"])[_BASE_VELOCITY][0])
+            velocities.append(task.critic_in_units(obs["critic"])[base_velocity][0])
             fell, done = info["fall"], terminated or truncated
         survived += not fell
         mean_vx = float(np.mean(velocities))

@@ -1,5 +1,5 @@
-"""The shipped Zerith-1 agents load and act, RL Zoo finds them, and the evaluation tools compute what they
-claim (gait measures)."""
+"""The shipped agents (Zerith-1's two, the quadruped's one) load and act, RL Zoo and the README's main
+command find them, and the evaluation tools compute what they claim (gait measures)."""
 
 from __future__ import annotations
 
@@ -22,44 +22,84 @@ from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, gait_measures
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
 AGENTS = ("huri", "huri-baseline")
-"""The shipped agents' methods: each is in the folder of its RL Zoo algorithm, the method's name."""
+"""The shipped Zerith-1 agents' methods: each is in the folder of its RL Zoo algorithm, the method's name."""
+SHIPPED = [(method, ENV_ID, "zerith1") for method in AGENTS] + [("huri", "Go2Like-v0", "go2like")]
+"""Every shipped agent: method, env id and robot."""
 
 
-@pytest.mark.parametrize("method", AGENTS)
-def test_shipped_agent_has_rl_zoo_layout_and_is_small(method: str) -> None:
-    run = REPO / "trained_agents" / method / f"{ENV_ID}_1"
-    for name in (f"{ENV_ID}.zip", f"{ENV_ID}/vecnormalize.pkl", f"{ENV_ID}/config.yml", f"{ENV_ID}/args.yml"):
+@pytest.mark.parametrize(("method", "env_id", "robot"), SHIPPED)
+def test_shipped_agent_has_rl_zoo_layout_and_is_small(method: str, env_id: str, robot: str) -> None:
+    run = REPO / "trained_agents" / method / f"{env_id}_1"
+    for name in (f"{env_id}.zip", f"{env_id}/vecnormalize.pkl", f"{env_id}/config.yml", f"{env_id}/args.yml"):
         assert (run / name).is_file(), name
-    assert (run / f"{ENV_ID}.zip").stat().st_size < 5_000_000
-    assert yaml.safe_load((run / ENV_ID / "args.yml").read_text())["algo"] == method
+    assert (run / f"{env_id}.zip").stat().st_size < 5_000_000
+    assert (run / env_id / "vecnormalize.pkl").stat().st_size < 100_000
+    args = yaml.safe_load((run / env_id / "args.yml").read_text())
+    assert args["algo"] == method and args["env"] == env_id
 
 
-@pytest.mark.parametrize("method", AGENTS)
-def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(method: str) -> None:
-    run = REPO / "trained_agents" / method / f"{ENV_ID}_1"
-    model = HuRiPPO.load(run / f"{ENV_ID}.zip", device="cpu")
+@pytest.mark.parametrize(("method", "env_id", "robot"), SHIPPED)
+def test_shipped_agent_stays_up_for_two_seconds_in_the_nominal_scenario(
+    method: str, env_id: str, robot: str
+) -> None:
+    run = REPO / "trained_agents" / method / f"{env_id}_1"
+    model = HuRiPPO.load(run / f"{env_id}.zip", device="cpu")
     assert model.method == method
-    env = zerith_gym.make_vec_env(4, seed=0, scenario="nominal", command=(0.5, 0.0, 0.0))
-    normalizer = VecNormalize.load(str(run / ENV_ID / "vecnormalize.pkl"), env)
+    env = zerith_gym.make_vec_env(4, seed=0, scenario="nominal", command=(0.5, 0.0, 0.0), robot=robot)
+    normalizer = VecNormalize.load(str(run / env_id / "vecnormalize.pkl"), env)
     normalizer.training = False
     obs = normalizer.reset()
+    bound = env.action_space.high.max()  # 1 for Zerith-1, legged_gym's 100 for the quadruped
     for _ in range(100):
         action, _ = model.predict(obs, deterministic=True)
-        assert action.shape == (4, 12) and np.isfinite(action).all() and np.abs(action).max() <= 1.0
+        assert action.shape == (4, 12) and np.isfinite(action).all() and np.abs(action).max() <= bound
         obs, _, _, infos = normalizer.step(action)
         assert not any(info["fall"] for info in infos)
 
 
-@pytest.mark.parametrize("algo", AGENTS)
-def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str) -> None:
+@pytest.mark.parametrize(("algo", "env_id", "robot"), SHIPPED)
+def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str, env_id: str, robot: str) -> None:
     script = shutil.which("rl_zoo3", path=str(Path(sys.executable).parent))
     command = [script] if script else [sys.executable, "-m", "sb3_huri.zoo"]
-    command += ["enjoy", "--algo", algo, "--env", ENV_ID, "-f", "trained_agents", "--no-render", "-n", "50"]
+    command += ["enjoy", "--algo", algo, "--env", env_id, "-f", "trained_agents", "--no-render", "-n", "50"]
     result = subprocess.run(
         command, cwd=REPO, capture_output=True, text=True, timeout=300, env={**os.environ, "MUJOCO_GL": "egl"}
     )
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    assert f"Loading trained_agents/{algo}/{ENV_ID}_1/{ENV_ID}.zip" in result.stdout
+    assert f"Loading trained_agents/{algo}/{env_id}_1/{env_id}.zip" in result.stdout
+
+
+def test_readme_main_command_watches_every_shipped_agent_walk() -> None:
+    """The README's main command (after its install) runs each shipped agent at 0.5 m/s and reports it."""
+    readme = (REPO / "README.md").read_text()
+    block = readme.split("<!-- main-command -->", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+    watch = block.strip().split(" && ")[-1].split()
+    assert watch[:2] == ["python", "examples/watch_zerith.py"], block
+    result = subprocess.run(
+        [sys.executable, *watch[1:], "--episodes", "1"], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    for method, env_id, _ in SHIPPED:
+        assert f"agent {REPO / 'trained_agents' / method / f'{env_id}_1'} ({method})" in result.stdout
+    assert result.stdout.count("1/1 episodes without a fall") == len(SHIPPED), result.stdout
+    speeds = [
+        float(line.split("mean vx ")[1].split()[0])
+        for line in result.stdout.splitlines()
+        if "mean vx" in line
+    ]
+    assert len(speeds) == len(SHIPPED) and all(0.35 < v < 0.65 for v in speeds), result.stdout
+
+
+def test_shipped_quadruped_walks_at_the_commanded_speed() -> None:
+    """The quadruped's agent (flat ground, docs/go2like.md): 4 robots of `nominal` walk their 20 s at 0.5
+    and 1 m/s, within 0.15 m/s of the command on average."""
+    from sb3_huri.experiments.evaluation import evaluate
+    from sb3_huri.zoo import load_run
+
+    model, normalizer = load_run(REPO / "trained_agents" / "huri" / "Go2Like-v0_1", "Go2Like-v0")
+    for vx in (0.5, 1.0):
+        result = evaluate(model, normalizer, "nominal", (vx, 0.0, 0.0), 4, 2000, workers=0, robot="go2like")
+        assert result["survive"] == 1.0 and abs(result["vx"] - vx) < 0.15, (vx, result)
 
 
 def test_sb3_ppo_loads_the_shipped_baseline_and_acts_as_huri_ppo_does() -> None:
@@ -163,3 +203,26 @@ def test_compare_agents_averages_table1_per_robot() -> None:
         assert row["only_first"] + row["only_second"] == disagree.sum()
         expected = stats.binomtest(int((first[case][0] & disagree).sum()), int(disagree.sum())).pvalue
         assert row["p_value"] == pytest.approx(expected)
+
+
+def test_copy_agent_keeps_what_acts_and_trains_and_leaves_the_rollout_state(tmp_path) -> None:
+    """``copy_agent`` (how the quadruped's agent was shipped): the copy acts as the run does, trains on, and
+    holds no robot's last observation."""
+    from sb3_huri.zoo.runs import copy_agent, load_run
+
+    source = REPO / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1"
+    copy = copy_agent(source, ENV_ID, tmp_path / "agent")
+    (model, normalizer), (copied, copied_normalizer) = load_run(source, ENV_ID), load_run(copy, ENV_ID)
+    assert copied._last_obs is None and copied_normalizer.old_obs is None
+    np.testing.assert_array_equal(copied_normalizer.obs_rms["policy"].mean, normalizer.obs_rms["policy"].mean)
+    obs = zerith_gym.make_vec_env(4, seed=0, scenario="train").reset()
+    np.testing.assert_array_equal(
+        copied.predict(copied_normalizer.normalize_obs(obs), deterministic=True)[0],
+        model.predict(normalizer.normalize_obs(obs), deterministic=True)[0],
+    )
+    for name in ("config.yml", "args.yml"):
+        assert (copy / ENV_ID / name).read_text() == (source / ENV_ID / name).read_text()
+    env = VecNormalize.load(str(copy / ENV_ID / "vecnormalize.pkl"), zerith_gym.make_vec_env(4, seed=0))
+    trained = HuRiPPO.load(copy / f"{ENV_ID}.zip", env=env, device="cpu", n_steps=16, batch_size=32)
+    trained.learn(64)
+    assert trained.num_timesteps == 64

@@ -132,3 +132,39 @@ def load_checkpoint(
         kind = type(normalizer).__name__
         raise ValueError(f"{normalizer_file} holds a {kind}, not VecNormalize statistics")
     return model, normalizer
+
+
+ROLLOUT_STATE = (
+    "_last_obs",
+    "_last_original_obs",
+    "_last_episode_starts",
+    "ep_info_buffer",
+    "ep_success_buffer",
+)
+"""What a saved model holds of its robots' last step and episodes: needed to go on training in place, not to
+act (a model loaded without it starts from its env's reset, as ``learn(reset_num_timesteps=True)`` does)."""
+
+
+def copy_agent(run: str | os.PathLike, env_id: str, destination: str | os.PathLike) -> Path:
+    """The agent of a run folder alone, in RL Zoo's layout at ``destination``, for sharing.
+
+    The model keeps its networks and optimizer (so it can be trained on) and leaves out the rollout state
+    (``ROLLOUT_STATE``); the normalizer keeps its statistics and leaves out its robots' last observations
+    and rewards; ``config.yml`` and ``args.yml`` are copied. With 256 robots that is a few MB instead of the
+    run's 6: what ``rl_zoo3 enjoy``, ``load_run`` and ``examples/watch_zerith.py`` read, and nothing else.
+    """
+    import shutil
+
+    source, destination = Path(run), Path(destination)
+    model, normalizer = load_run(source, env_id)
+    (destination / env_id).mkdir(parents=True, exist_ok=True)
+    model.save(destination / f"{env_id}.zip", exclude=list(ROLLOUT_STATE))
+    if normalizer is not None:
+        normalizer.old_obs, normalizer.old_reward = None, None
+        # What VecNormalize.__getstate__ drops, absent from statistics unpickled without an env.
+        normalizer.class_attributes, normalizer.returns = {}, None
+        with open(destination / env_id / "vecnormalize.pkl", "wb") as file:
+            pickle.dump(normalizer, file)
+    for name in ("config.yml", "args.yml"):
+        shutil.copyfile(source / env_id / name, destination / env_id / name)
+    return destination
