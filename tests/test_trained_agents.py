@@ -226,3 +226,11 @@ def test_copy_agent_keeps_what_acts_and_trains_and_leaves_the_rollout_state(tmp_
     trained = HuRiPPO.load(copy / f"{ENV_ID}.zip", env=env, device="cpu", n_steps=16, batch_size=32)
     trained.learn(64)
     assert trained.num_timesteps == 64
+
+
+def test_watch_script_names_a_folder_without_an_agent_before_watching_any(tmp_path) -> None:
+    shipped = str(REPO / "trained_agents" / "huri" / f"{ENV_ID}_1")
+    command = [sys.executable, "examples/watch_zerith.py", shipped, str(tmp_path), "--episodes", "1"]
+    result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "agent " not in result.stdout  # nothing watched
+    assert f"{tmp_path} holds no agent" in result.stderr and "Zerith1-v0, Go2Like-v0" in result.stderr
