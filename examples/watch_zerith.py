@@ -27,10 +27,11 @@ import numpy as np
 import torch as th
 
 import zerith_gym
-from sb3_huri.zoo import load_run
+from sb3_huri.zoo import ROBOT_ENTRY_POINTS, load_run
 from zerith_gym.observations import layout_slices
 
-ENV_IDS = ("Zerith1-v0", "Go2Like-v0")
+ENV_IDS = tuple(env_id for env_id, spec in gym.registry.items() if spec.entry_point in ROBOT_ENTRY_POINTS)
+"""The envs whose agents this script can watch: every registered robot env (Zerith1-v0, Go2Like-v0)."""
 SHIPPED = Path(__file__).resolve().parent.parent / "trained_agents"
 DEFAULT_AGENTS = [
     SHIPPED / "huri" / "Zerith1-v0_1",
