@@ -24,7 +24,6 @@ from sb3_huri.experiments.evaluation import (
     RISK_CASES,
     TABLE1_SCENARIOS,
     RiskTrace,
-    paired_difference_interval,
     write_trace,
 )
 from sb3_huri.experiments.final_evaluation import (
@@ -36,6 +35,7 @@ from sb3_huri.experiments.final_evaluation import (
 from sb3_huri.experiments.layout import ExperimentError
 from sb3_huri.experiments.queue import CampaignEntry, QueueDefaults, load_queue
 from sb3_huri.experiments.results import write_results
+from sb3_huri.experiments.statistics import paired_difference_interval
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
 
 ENV = "Zerith1-v0"

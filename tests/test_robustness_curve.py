@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from sb3_huri.experiments import robustness_curves as curve
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, wilson_interval
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
 from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
 from sb3_huri.experiments.robustness_plot import FORK_COLORS, fork_own_rows, plot_curve
+from sb3_huri.experiments.statistics import wilson_interval
 from sb3_huri.zoo.curve import append_row
 
 CASE_VALUE = 0.5

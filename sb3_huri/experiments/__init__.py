@@ -1,20 +1,36 @@
-"""The paper's experiments: a grid of methods x seeds trained, evaluated and reported by one command.
+"""The paper's experiments: a grid of short runs, a campaign of long ones, and the pages their results make.
 
     python -m sb3_huri.experiments run --env Zerith1-v0 --methods huri huri-baseline --seeds 0 1 2 \\
         --timesteps 2000000 --eval-episodes 10 --out results/zerith [--backend local|ray] [--workers W]
     python -m sb3_huri.experiments report results/zerith
+    python -m sb3_huri.experiments campaign [--status] [--max-wall-minutes M]
+    python -m sb3_huri.experiments results
 
-Modules, one job each:
+Modules, one job each. Shared by both:
+
+- ``trainer``: the one trainer of every run: start or resume a run folder, checkpoint it between rollouts;
+- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, terrain tests of Tables 8/9,
+  risk traces) on a trained agent;
+- ``statistics``: the interval estimates of every table (t, Wilson, paired Newcombe);
+- ``paper``: the paper's own numbers, printed beside ours.
+
+The grid (``run``, ``report``):
 
 - ``layout``: the experiment folder, its settings and grid, run folders and their ``status.json``
   (atomic writes, locks, clear errors for foreign or corrupt folders);
-- ``training``: one run trained on the env's preset, resumable from its last checkpoint;
-- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, terrain tests of Tables 8/9,
-  risk traces) on a trained run;
+- ``training``: one run of the grid trained on the env's preset, resumable from its last checkpoint;
 - ``job``: one run's whole job (train, then evaluate), what a backend executes;
 - ``backends``: a local process pool, or Ray tasks across a cluster;
 - ``driver``: the ``run`` command: skip finished runs, hand the rest to a backend, print progress;
-- ``report``: ``report.md`` and figures beside the paper's numbers (``paper``).
+- ``report``: ``report.md`` and figures beside the paper's numbers.
+
+The campaign (``campaign``, ``results``; docs/campaign.md):
+
+- ``queue``: the long runs of ``runs/campaign.yml``, in priority order, and how far each has come;
+- ``campaign``: trains the queue's unfinished entries, one per core, stretch after stretch;
+- ``robustness``: a run's robustness rows (``robustness.csv``), a Table-1 mean every few million steps;
+- ``final_evaluation``: an entry's final evaluation at its step, on 100 held-out robots;
+- ``results``: ``docs/results.md`` and its figures, generated from the queue and its run folders.
 
 The analyses behind the scripts of ``benchmarks/`` (each script only parses its command line):
 

@@ -27,12 +27,10 @@ import numpy as np
 from sb3_huri.experiments.evaluation import (
     TABLE1_SCENARIOS,
     evaluate,
-    paired_difference_interval,
     parse_case,
-    wilson_interval,
 )
-from sb3_huri.experiments.report import mean_ci
 from sb3_huri.experiments.robustness import ENV_ID
+from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
 from sb3_huri.zoo import load_run
 
 COMPARED_CASES = (*TABLE1_SCENARIOS, "side-impact", "nominal@1.0")

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import itertools
-import math
 import os
 import random
 import time
@@ -38,7 +37,14 @@ from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.layout import RunStatus, Settings, atomic_write_json, read_json, write_status
+from sb3_huri.experiments.layout import (
+    ExperimentError,
+    RunStatus,
+    Settings,
+    atomic_write_json,
+    read_json,
+    write_status,
+)
 from zerith_gym.observations import layout_slices
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 from zerith_gym.robot import CONTROL_DT, ZERITH1
@@ -77,47 +83,6 @@ def parse_case(case: str) -> tuple[str, tuple[float, float, float] | None]:
             f"unknown scenario {name!r} in case {case!r}; valid scenarios: {', '.join(SCENARIOS)}"
         )
     return name, None if not vx else (float(vx), 0.0, 0.0)
-
-
-def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The 95% Wilson score interval of a share (e.g. ``survive``) observed over ``n`` episodes: unlike the
-    normal approximation it stays within [0, 1] and is not empty at a share of 0 or 1."""
-    if n <= 0:
-        raise ValueError(f"a share needs at least one episode, got n={n}")
-    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(centre - half, 0.0), min(centre + half, 1.0)
-
-
-def paired_difference_interval(first: np.ndarray, second: np.ndarray) -> tuple[float, float, float]:
-    """Difference of two survival shares measured on the same robots, ``mean(first) - mean(second)``, with
-    its 95% interval: Newcombe's hybrid score interval for paired proportions (method 10 of his 1998 paper
-    on paired data), built from each share's Wilson interval and the correlation of the pairs.
-
-    ``first``, ``second``: (robots,) booleans, robot i's outcome under each agent. Pairing is what makes
-    two agents on the same seeds comparable with few robots: only the robots on which they disagree move
-    the difference. Unlike a t-interval on the per-robot differences it is not empty when they never
-    disagree, and stays within [-1, 1].
-    """
-    first, second = np.asarray(first, dtype=bool), np.asarray(second, dtype=bool)
-    if first.shape != second.shape or first.ndim != 1 or first.size == 0:
-        raise ValueError(f"need two outcomes per robot, got shapes {first.shape} and {second.shape}")
-    n = first.size
-    both, only_first = np.sum(first & second), np.sum(first & ~second)
-    only_second, neither = np.sum(~first & second), np.sum(~first & ~second)
-    share_first, share_second = first.mean(), second.mean()
-    low_first, high_first = wilson_interval(share_first, n)
-    low_second, high_second = wilson_interval(share_second, n)
-    margins = float(
-        (both + only_first) * (only_second + neither) * (both + only_second) * (only_first + neither)
-    )
-    phi = (both * neither - only_first * only_second) / math.sqrt(margins) if margins > 0 else 0.0
-    below = (share_first - low_first, high_second - share_second)
-    above = (high_first - share_first, share_second - low_second)
-    delta = math.sqrt(max(below[0] ** 2 - 2 * phi * below[0] * below[1] + below[1] ** 2, 0.0))
-    epsilon = math.sqrt(max(above[0] ** 2 - 2 * phi * above[0] * above[1] + above[1] ** 2, 0.0))
-    difference = float(share_first - share_second)
-    return difference, max(difference - delta, -1.0), min(difference + epsilon, 1.0)
 
 
 def gait_measures(contact: np.ndarray, min_air_steps: int = MIN_AIR_STEPS) -> tuple[float, float, float]:
@@ -324,6 +289,15 @@ def write_trace(target: Path, trace: RiskTrace) -> None:
     with open(temporary, "wb") as f:
         np.savez(f, **trace.arrays())
     os.replace(temporary, target)
+
+
+def read_trace(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a risk trace file (``write_trace``); ExperimentError if it is corrupt."""
+    try:
+        with np.load(path) as arrays:
+            return {key: arrays[key] for key in arrays.files}
+    except (OSError, ValueError) as error:
+        raise ExperimentError(f"{path} is corrupt ({error}); delete it to evaluate anew") from error
 
 
 def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: int = 0) -> RunStatus:

@@ -34,6 +34,7 @@ from sb3_huri.experiments.evaluation import (
     TABLE1_SCENARIOS,
     TERRAIN_SCENARIOS,
     TRACKING_SCENARIOS,
+    read_trace,
     risk_file,
 )
 from sb3_huri.experiments.layout import (
@@ -46,39 +47,14 @@ from sb3_huri.experiments.layout import (
     read_status,
     run_folder,
 )
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.experiments.statistics import mean_ci
+from sb3_huri.zoo.curve import final_return, read_curve
 
 REPORT_FILE = "report.md"
 RETURNS_FIGURE = "returns.png"
 RISK_FIGURE = "risk.png"
 PUSH_CASE = "sudden-centroid"
 RISK_LABELS = {PLANE_CASE: "plane", PUSH_CASE: "sudden push", "uneven": "uneven"}
-_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145)
-_T975 += (2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048)
-_T975 += (2.045, 2.042)
-
-
-def t_quantile(dof: int) -> float:
-    """Student's t 0.975 quantile for ``dof`` degrees of freedom (a table to 30, then the Cornish-Fisher
-    expansion around the normal quantile, within 1e-3)."""
-    if dof < 1:
-        raise ValueError(f"degrees of freedom must be positive, got {dof}")
-    if dof <= len(_T975):
-        return _T975[dof - 1]
-    z = 1.959964
-    return z + (z**3 + z) / (4 * dof) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * dof**2)
-
-
-def mean_ci(values: Sequence[float]) -> tuple[float, float, int]:
-    """Mean, half width of its 95% confidence interval (t; NaN below two values) and count of the finite
-    ``values``; NaN mean when there are none."""
-    finite = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
-    n = len(finite)
-    if n == 0:
-        return math.nan, math.nan, 0
-    if n == 1:
-        return float(finite[0]), math.nan, 1
-    return float(finite.mean()), float(t_quantile(n - 1) * finite.std(ddof=1) / math.sqrt(n)), n
 
 
 @dataclass
@@ -97,15 +73,6 @@ class RunResult:
     def final_return(self) -> float:
         """Mean of SB3's ``ep_rew_mean`` over the last tenth of training (NaN without episodes)."""
         return final_return(self.curve)
-
-
-def final_return(curve: Sequence[dict[str, float]]) -> float:
-    """Mean of a learning curve's ``ep_return`` over the last tenth of its steps (NaN without episodes)."""
-    rows = [row for row in curve if math.isfinite(row["ep_return"])]
-    if not rows:
-        return math.nan
-    last = rows[-1]["timesteps"]
-    return float(np.mean([row["ep_return"] for row in rows if row["timesteps"] >= 0.9 * last]))
 
 
 def load_results(out: Path) -> tuple[Settings, list[RunResult]]:
@@ -127,15 +94,6 @@ def load_results(out: Path) -> tuple[Settings, list[RunResult]]:
                 result.traces[case] = read_trace(path)
         results.append(result)
     return settings, results
-
-
-def read_trace(path: Path) -> dict[str, np.ndarray]:
-    """The arrays of a risk trace file (``evaluation.write_trace``); ExperimentError if it is corrupt."""
-    try:
-        with np.load(path) as arrays:
-            return {key: arrays[key] for key in arrays.files}
-    except (OSError, ValueError) as error:
-        raise ExperimentError(f"{path} is corrupt ({error}); delete it to evaluate anew") from error
 
 
 def _by_method(results: Sequence[RunResult]) -> dict[str, list[RunResult]]:

@@ -24,9 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, wilson_interval
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
 from sb3_huri.experiments.layout import atomic_write_text
 from sb3_huri.experiments.robustness import CASES, ENV_ID, NOMINAL, add_row, read_rows, robustness_row
+from sb3_huri.experiments.statistics import wilson_interval
 from sb3_huri.zoo import load_run
 from sb3_huri.zoo.checkpoints import RunState
 

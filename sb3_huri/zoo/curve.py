@@ -70,6 +70,16 @@ def read_curve(folder: str | os.PathLike) -> list[dict[str, float]]:
     return rows
 
 
+def final_return(curve: list[dict[str, float]]) -> float:
+    """Mean of a learning curve's ``ep_return`` over the last tenth of its steps (NaN without episodes)."""
+    rows = [row for row in curve if math.isfinite(row["ep_return"])]
+    if not rows:
+        return math.nan
+    last = rows[-1]["timesteps"]
+    last_tenth = [row["ep_return"] for row in rows if row["timesteps"] >= 0.9 * last]
+    return math.fsum(last_tenth) / len(last_tenth)
+
+
 def trim_curve(folder: str | os.PathLike, steps: int) -> None:
     """Keep the rows up to ``steps`` (a resumed run trains the steps after its checkpoint again); the file
     is replaced whole, never left torn."""

@@ -19,10 +19,10 @@ from sb3_huri.experiments.evaluation import (
 )
 from sb3_huri.experiments.layout import ExperimentError, read_json
 from sb3_huri.experiments.queue import ENV_ID, CampaignEntry
-from sb3_huri.experiments.report import mean_ci
 from sb3_huri.experiments.results.markdown import (
     millions,
 )
+from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.zoo.curve import read_curve
 
 BASELINE = "huri-baseline"

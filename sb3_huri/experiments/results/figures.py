@@ -14,12 +14,12 @@ from sb3_huri.experiments import paper
 from sb3_huri.experiments.evaluation import (
     PLANE_CASE,
     RISK_CASES,
+    read_trace,
 )
 from sb3_huri.experiments.final_evaluation import (
     trace_path,
 )
 from sb3_huri.experiments.queue import PROTOCOLS, CampaignEntry
-from sb3_huri.experiments.report import final_return, read_trace
 from sb3_huri.experiments.results.evaluations import (
     FIGURE_DPI,
     METHOD_COLORS,
@@ -39,7 +39,7 @@ from sb3_huri.experiments.results.markdown import (
     share_cell,
 )
 from sb3_huri.experiments.robustness import read_rows
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.zoo.curve import final_return, read_curve
 
 
 def _run_label(run_entries: Sequence[CampaignEntry]) -> str:

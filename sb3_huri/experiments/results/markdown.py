@@ -6,9 +6,7 @@ import math
 import os
 from pathlib import Path
 
-from sb3_huri.experiments.evaluation import (
-    wilson_interval,
-)
+from sb3_huri.experiments.statistics import wilson_interval
 
 
 def millions(steps: int) -> str:

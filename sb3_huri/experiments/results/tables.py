@@ -10,14 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.evaluation import (
-    TABLE1_SCENARIOS,
-    paired_difference_interval,
-)
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
 from sb3_huri.experiments.final_evaluation import PARTIAL, evaluation_cases, hardware_until
 from sb3_huri.experiments.layout import read_json
 from sb3_huri.experiments.queue import EVALUATIONS, PROTOCOLS, CampaignEntry
-from sb3_huri.experiments.report import mean_ci
 from sb3_huri.experiments.results.evaluations import (
     BASELINE,
     SURVIVAL_CASES,
@@ -36,6 +32,7 @@ from sb3_huri.experiments.results.markdown import (
     share_cell,
     verdict,
 )
+from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
 
 
 def findings_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated]) -> list[str]:
