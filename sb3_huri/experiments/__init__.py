@@ -12,12 +12,12 @@ Modules, one job each. Shared by both:
 - ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, terrain tests of Tables 8/9,
   risk traces) on a trained agent;
 - ``statistics``: the interval estimates of every table (t, Wilson, paired Newcombe);
-- ``paper``: the paper's own numbers, printed beside ours.
+- ``paper``: the paper's own numbers, printed beside ours;
+- ``layout``: the grid's experiment folder (its settings, run folders and ``status.json``), and the
+  ``ExperimentError`` and atomic writes every command uses.
 
 The grid (``run``, ``report``):
 
-- ``layout``: the experiment folder, its settings and grid, run folders and their ``status.json``
-  (atomic writes, locks, clear errors for foreign or corrupt folders);
 - ``training``: one run of the grid trained on the env's preset, resumable from its last checkpoint;
 - ``job``: one run's whole job (train, then evaluate), what a backend executes;
 - ``backends``: a local process pool, or Ray tasks across a cluster;
@@ -30,7 +30,8 @@ The campaign (``campaign``, ``results``; docs/campaign.md):
 - ``campaign``: trains the queue's unfinished entries, one per core, stretch after stretch;
 - ``robustness``: a run's robustness rows (``robustness.csv``), a Table-1 mean every few million steps;
 - ``final_evaluation``: an entry's final evaluation at its step, on 100 held-out robots;
-- ``results``: ``docs/results.md`` and its figures, generated from the queue and its run folders.
+- ``results`` (a package: tables, figures, the quadruped's and the rollout shape's sections):
+  ``docs/results.md`` and its figures, generated from the queue and its run folders.
 
 The analyses behind the scripts of ``benchmarks/`` (each script only parses its command line):
 

@@ -1,9 +1,10 @@
-"""The one trainer of long runs: start or resume a run folder, train it, checkpoint it between rollouts.
+"""The one trainer of every run: start or resume a run folder, train it, checkpoint it between rollouts.
 
-``train_run`` is what ``examples/train_zerith.py`` and the campaign (``python -m sb3_huri.experiments
-campaign``) run. It trains what ``rl_zoo3 train --algo <method> --env Zerith1-v0 -conf <preset>`` trains (the
-preset's batched env, normalizer, model and ``callback:`` entries, read as RL Zoo reads them) and adds what a
-run spanning many sessions needs. A run folder, in RL Zoo's layout so that RL Zoo's tools read it::
+``train_run`` is what the grid (``training``), ``examples/train_zerith.py`` and the campaign
+(``python -m sb3_huri.experiments campaign``) run. It trains what ``rl_zoo3 train --algo <method> --env
+Zerith1-v0 -conf <preset>`` trains (the preset's batched env, normalizer, model and ``callback:`` entries,
+read as RL Zoo reads them) and adds what a run spanning many sessions needs. A run folder, in RL Zoo's
+layout so that RL Zoo's tools read it::
 
     <run>/Zerith1-v0.zip                      the newest checkpoint's model
     <run>/Zerith1-v0/config.yml, args.yml     the preset and the run's arguments (method, seed, env options)
