@@ -4,7 +4,7 @@
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue a run where it stopped
     python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1 -params mirror_coef:4.0  # ... + symmetry
-    python examples/train_zerith.py -conf hyperparams/huri_robust.yml -f runs --max-wall-minutes 150
+    python examples/train_zerith.py -conf hyperparams/huri_robust.yml --max-wall-minutes 150
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
 `hyperparams/huri.yml` on the batched env (`zerith_gym.make_vec_env`: a slice of robots per core),

@@ -206,12 +206,14 @@ def recent_rate(run: Path, rows: int = 200) -> float | None:
 
 def status_table(queue: Path) -> str:
     """Every entry's protocol, method, seed, steps against its target, training hours, recent speed, the
-    training hours left at that speed, and state."""
+    training hours left at that speed, and state; then the whole queue's steps trained against its total
+    (each run folder counted once, at its largest target)."""
     import json
 
     header = f"{'entry':24} {'protocol':10} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
-    for entry in load_queue(queue):
+    entries = load_queue(queue)
+    for entry in entries:
         state_file = entry.run / entry.env_id / "state.json"
         hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
         steps, state = entry.trained_steps(), entry.state()
@@ -223,4 +225,14 @@ def status_table(queue: Path) -> str:
             f"{entry.name:24} {entry.protocol:10} {entry.method:14} {entry.seed:4} "
             f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
         )
+    targets: dict[Path, int] = {}
+    for entry in entries:
+        targets[entry.run] = max(targets.get(entry.run, 0), entry.steps)
+    runs = {entry.run: entry for entry in entries}
+    done = sum(min(runs[run].trained_steps(), target) for run, target in targets.items())
+    total = sum(targets.values())
+    lines.append(
+        f"queue: {done:,} of {total:,} steps trained ({100 * done / total:.0f}%) in {len(targets)} run "
+        f"folders, {total - done:,} left"
+    )
     return "\n".join(lines)
