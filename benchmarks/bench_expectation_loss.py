@@ -8,7 +8,7 @@ coefficient grow; the ``"target"`` reading (the predicted mean against the targe
 
     python benchmarks/bench_expectation_loss.py   # table: reading, beta, coef -> fitted std / true std
 
-The fit is `sb3_huri.experiments.expectation_fit`.
+The fit is `sb3_huri.experiments.analyses.expectation_fit`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import argparse
 
 import torch as th
 
-from sb3_huri.experiments.expectation_fit import KNOWN_MEAN, KNOWN_STD, spread_table
+from sb3_huri.experiments.analyses.expectation_fit import KNOWN_MEAN, KNOWN_STD, spread_table
 
 
 def main() -> None:

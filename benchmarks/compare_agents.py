@@ -15,7 +15,7 @@ which they disagree, which unpaired intervals of each share would blur. The forw
 agent's command is printed too (`vx`, m/s; the shipping criterion asks >= 0.8 at 1 m/s).
 
 Agents are run folders in RL Zoo's layout (`Zerith1-v0.zip`, `Zerith1-v0/vecnormalize.pkl`), trained by
-any method of this package or by SB3's PPO. The work is done by `sb3_huri.experiments.agents`.
+any method of this package or by SB3's PPO. The work is done by `sb3_huri.experiments.analyses.agents`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import torch as th
 
-from sb3_huri.experiments.agents import COMPARED_CASES, check_cases, compare_agents, comparison_text
+from sb3_huri.experiments.analyses.agents import COMPARED_CASES, check_cases, compare_agents, comparison_text
 
 
 def main() -> None:

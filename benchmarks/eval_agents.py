@@ -21,7 +21,7 @@ Columns:
 - `1-supp`: share of the time on exactly one foot.
 
 The evaluation itself is `sb3_huri.experiments.evaluation` (also used by `python -m sb3_huri.experiments`);
-`sb3_huri.experiments.agents.evaluate_agents` runs it over agents and cases.
+`sb3_huri.experiments.analyses.agents.evaluate_agents` runs it over agents and cases.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import torch as th
 
-from sb3_huri.experiments.agents import evaluate_agents
+from sb3_huri.experiments.analyses.agents import evaluate_agents
 from sb3_huri.experiments.robustness import ENV_ID
 from zerith_gym.scenarios import SCENARIOS
 

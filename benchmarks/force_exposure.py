@@ -4,7 +4,8 @@ A force cycle's later phases act only on robots that outlast its earlier ones, s
 depends on how long it stays up. This runs an agent's stochastic policy (as in training) on a scenario,
 scaled like a curriculum stage, and counts robot-steps and falls by the force the force table names at
 each robot's step: its target (centroid, hands, feet) and the range its magnitudes are drawn from (a
-continuous 0-100 N apart from 150-200 N impulses). The work is done by `sb3_huri.experiments.force_exposure`.
+continuous 0-100 N apart from 150-200 N impulses). The work is done by
+`sb3_huri.experiments.analyses.force_exposure`.
 
     python benchmarks/force_exposure.py runs/huri/Zerith1-v0_1                    # robust at scale 1
     python benchmarks/force_exposure.py runs/huri/Zerith1-v0_1 --scale 0.95 --start-phases 0
@@ -18,7 +19,7 @@ from pathlib import Path
 import torch as th
 
 import zerith_gym
-from sb3_huri.experiments.force_exposure import exposure, exposure_table, training_scenario
+from sb3_huri.experiments.analyses.force_exposure import exposure, exposure_table, training_scenario
 from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.zoo import load_run
 from zerith_gym.scenarios import SCENARIOS

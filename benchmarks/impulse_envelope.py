@@ -23,7 +23,7 @@ before the next one: the per-push survival, and the episode survival it compound
     python benchmarks/impulse_envelope.py runs/huri/Zerith1-v0_1 --stand --forces 25 50 100
     python benchmarks/impulse_envelope.py runs/huri/Zerith1-v0_1 --table1 --robots 100
 
-The work is done by `sb3_huri.experiments.impulses`.
+The work is done by `sb3_huri.experiments.analyses.impulses`.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from pathlib import Path
 
 import torch as th
 
+from sb3_huri.experiments.analyses.impulses import PUSH_STEPS, print_envelope, print_table1
 from sb3_huri.experiments.evaluation import HoldStance
-from sb3_huri.experiments.impulses import PUSH_STEPS, print_envelope, print_table1
 from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.zoo import load_run
 from zerith_gym.disturbances import FORCE_TARGETS

@@ -20,7 +20,7 @@ with `--episodes` when its checkpoint is still there, and kept as it is otherwis
 
 With `--summary`, the run's status (sessions, steps, wall time, curriculum, the update's figures) and the
 robustness curve, with its trend and the shipping check, are written to `<run>/robustness.md`. The work is
-done by `sb3_huri.experiments.robustness_curves` and `sb3_huri.experiments.robustness_plot`.
+done by `sb3_huri.experiments.analyses.robustness_curves` and `sb3_huri.experiments.analyses.robustness_plot`.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import torch as th
 
-from sb3_huri.experiments.robustness_curves import update_curve, write_summary
-from sb3_huri.experiments.robustness_plot import plot_curve
+from sb3_huri.experiments.analyses.robustness_curves import update_curve, write_summary
+from sb3_huri.experiments.analyses.robustness_plot import plot_curve
 
 
 def main() -> None:

@@ -13,7 +13,7 @@ a Table-1 share mixes easy robots with hard ones. This runs `--robots` episodes 
     python benchmarks/survival_by_domain.py runs/huri/Zerith1-v0_3 --cases continuous-feet --robots 200
 
 The friction binned and correlated is the drawn sole material; a sole slides at its mean with the ground's 1
-(`zerith_gym.physics.contact_friction`). The work is done by `sb3_huri.experiments.domain_survival`.
+(`zerith_gym.physics.contact_friction`). The work is done by `sb3_huri.experiments.analyses.domain_survival`.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import torch as th
 
-from sb3_huri.experiments.agents import check_cases
-from sb3_huri.experiments.domain_survival import FRICTION_BINS, parameter_names, survival_by_domain
+from sb3_huri.experiments.analyses.agents import check_cases
+from sb3_huri.experiments.analyses.domain_survival import FRICTION_BINS, parameter_names, survival_by_domain
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
 from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.zoo import load_run

@@ -1,5 +1,6 @@
 """The training campaign: its queue file, the order entries start in, robustness rows while training, and
-the whole queue trained by `python -m sb3_huri.experiments campaign` (sb3_huri.experiments.campaign)."""
+the whole queue trained by `python -m sb3_huri.experiments campaign`
+(sb3_huri.experiments.campaign.scheduler)."""
 
 from __future__ import annotations
 
@@ -15,10 +16,10 @@ import yaml
 from huri_helpers import ROOT, state_dicts_equal, tiny_robust_preset
 
 from sb3_huri import HuRiPPO
-from sb3_huri.experiments.campaign import campaign_lock, run_entry, runnable, status_table
-from sb3_huri.experiments.final_evaluation import QUADRUPED_CASES
+from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
+from sb3_huri.experiments.campaign.queue import load_queue
+from sb3_huri.experiments.campaign.scheduler import campaign_lock, run_entry, runnable, status_table
 from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.queue import load_queue
 from sb3_huri.experiments.robustness import CASES, read_rows
 from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import read_preset

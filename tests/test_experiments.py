@@ -26,6 +26,7 @@ from sb3_huri.experiments.evaluation import (
     RISK_CASES,
     risk_file,
 )
+from sb3_huri.experiments.grid.report import _ordering
 from sb3_huri.experiments.layout import (
     Settings,
     atomic_write_json,
@@ -33,7 +34,6 @@ from sb3_huri.experiments.layout import (
     read_status,
     run_folder,
 )
-from sb3_huri.experiments.report import _ordering
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
 from sb3_huri.zoo import load_run, next_run_folder
 from sb3_huri.zoo.checkpoints import RunState

@@ -1,5 +1,5 @@
-"""sb3_huri.experiments.force_exposure (`benchmarks/force_exposure.py`): robot-steps and falls counted by
-the force the scenario's table names."""
+"""sb3_huri.experiments.analyses.force_exposure (`benchmarks/force_exposure.py`): robot-steps and falls
+counted by the force the scenario's table names."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 
 import zerith_gym
+from sb3_huri.experiments.analyses.force_exposure import exposure
 from sb3_huri.experiments.evaluation import HoldStance
-from sb3_huri.experiments.force_exposure import exposure
 from zerith_gym.disturbances import TARGET_INDEX
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario

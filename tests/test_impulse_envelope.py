@@ -1,5 +1,5 @@
-"""sb3_huri.experiments.impulses (`benchmarks/impulse_envelope.py`): one push where and when it is asked
-for, and Table 1's pushes counted."""
+"""sb3_huri.experiments.analyses.impulses (`benchmarks/impulse_envelope.py`): one push where and when it
+is asked for, and Table 1's pushes counted."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from sb3_huri.experiments import impulses as envelope
+from sb3_huri.experiments.analyses import impulses as envelope
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS

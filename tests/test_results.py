@@ -18,7 +18,15 @@ import torch as th
 import yaml
 from scipy import stats
 
-from sb3_huri.experiments import final_evaluation
+from sb3_huri.experiments.campaign import final_evaluation
+from sb3_huri.experiments.campaign.final_evaluation import (
+    EVALUATION_CASES,
+    evaluate_entry,
+    find_checkpoint,
+    trace_path,
+)
+from sb3_huri.experiments.campaign.queue import CampaignEntry, QueueDefaults, load_queue
+from sb3_huri.experiments.campaign.results import write_results
 from sb3_huri.experiments.evaluation import (
     PLANE_CASE,
     RISK_CASES,
@@ -26,15 +34,7 @@ from sb3_huri.experiments.evaluation import (
     RiskTrace,
     write_trace,
 )
-from sb3_huri.experiments.final_evaluation import (
-    EVALUATION_CASES,
-    evaluate_entry,
-    find_checkpoint,
-    trace_path,
-)
 from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.queue import CampaignEntry, QueueDefaults, load_queue
-from sb3_huri.experiments.results import write_results
 from sb3_huri.experiments.statistics import paired_difference_interval
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
 

@@ -1,5 +1,5 @@
-"""sb3_huri.experiments.robustness_curves and robustness_plot (`benchmarks/robustness_curve.py`): which
-checkpoints of a long run are evaluated, and what is written and drawn."""
+"""sb3_huri.experiments.analyses.robustness_curves and robustness_plot (`benchmarks/robustness_curve.py`):
+which checkpoints of a long run are evaluated, and what is written and drawn."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from sb3_huri.experiments import robustness_curves as curve
+from sb3_huri.experiments.analyses import robustness_curves as curve
+from sb3_huri.experiments.analyses.robustness_plot import FORK_COLORS, fork_own_rows, plot_curve
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
 from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
-from sb3_huri.experiments.robustness_plot import FORK_COLORS, fork_own_rows, plot_curve
 from sb3_huri.experiments.statistics import wilson_interval
 from sb3_huri.zoo.curve import append_row
 

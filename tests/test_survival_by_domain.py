@@ -1,4 +1,4 @@
-"""sb3_huri.experiments.domain_survival (`benchmarks/survival_by_domain.py`) and
+"""sb3_huri.experiments.analyses.domain_survival (`benchmarks/survival_by_domain.py`) and
 `evaluate(..., per_robot=True)`: which robots fall, by their draws."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sb3_huri.experiments import domain_survival as survival
+from sb3_huri.experiments.analyses import domain_survival as survival
 from sb3_huri.experiments.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
 

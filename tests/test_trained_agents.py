@@ -16,7 +16,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.experiments import agents
+from sb3_huri.experiments.analyses import agents
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, gait_measures
 
 REPO = Path(__file__).resolve().parents[1]

@@ -15,8 +15,8 @@ Ray tasks on the cluster of ``RAY_ADDRESS`` (or ``--ray-address``), with the out
 machines. ``report`` writes ``DIR/report.md`` with the tables, figures and the paper's numbers.
 
 ``campaign`` trains the long runs of the queue ``runs/campaign.yml`` in the background, stretch after stretch,
-resumable (``sb3_huri.experiments.campaign``); ``results`` writes ``docs/results.md`` and its figures from
-the queue's run folders (``sb3_huri.experiments.results``).
+resumable (``sb3_huri.experiments.campaign.scheduler``); ``results`` writes ``docs/results.md`` and its
+figures from the queue's run folders (``sb3_huri.experiments.campaign.results``).
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _campaign(args: argparse.Namespace) -> int:
     """The ``campaign`` command: status, one entry, or the whole queue; 0 when nothing is left to do."""
-    from sb3_huri.experiments.campaign import run_campaign, run_entry, status_table
-    from sb3_huri.experiments.queue import load_queue
+    from sb3_huri.experiments.campaign.queue import load_queue
+    from sb3_huri.experiments.campaign.scheduler import run_campaign, run_entry, status_table
 
     max_wall_s = None if args.max_wall_minutes is None else 60.0 * args.max_wall_minutes
     if args.status:
@@ -105,17 +105,17 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "campaign":
             return _campaign(args)
         if args.command == "results":
-            from sb3_huri.experiments.results import write_results
+            from sb3_huri.experiments.campaign.results import write_results
 
             print(f"wrote {write_results(args.queue, args.out)}")
             return 0
         if args.command == "report":
-            from sb3_huri.experiments.report import write_report
+            from sb3_huri.experiments.grid.report import write_report
 
             path = write_report(args.out)
             print(f"wrote {path}")
             return 0
-        from sb3_huri.experiments.driver import run_experiment
+        from sb3_huri.experiments.grid.driver import run_experiment
 
         outcomes = run_experiment(
             args.out,

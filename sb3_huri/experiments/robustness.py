@@ -5,8 +5,8 @@ sudden forces on centroid, hands and feet, at the test ranges and 1 m/s), on ``s
 push from the side), ``nominal@1.0`` and ``nominal@0.5``, each on the same ``episodes`` robots (seeds
 ``seed + i``) for every checkpoint, and records the steps, the run's training wall time at that step
 (``curve.csv``), the hardware it trained on (``state.json``), the episodes per case, each case's survival,
-the Table-1 mean and the mean forward velocity at 1 m/s. The campaign's trainer writes a row every few
-million steps while it trains (``sb3_huri.experiments.trainer``); ``sb3_huri.experiments.robustness_curves``
+the Table-1 mean and the mean forward velocity at 1 m/s. The campaign's trainer writes a row every few million
+steps while it trains (``sb3_huri.experiments.trainer``); ``sb3_huri.experiments.analyses.robustness_curves``
 (``benchmarks/robustness_curve.py``) evaluates kept checkpoints afterwards.
 """
 

@@ -1,11 +1,11 @@
 """The final evaluation of a campaign entry: its checkpoint at the entry's step, once, under the paper's
 protocol.
 
-An entry of the campaign's queue (``sb3_huri.experiments.queue``) trains a run folder up to ``entry.steps``;
-its evaluation takes the first model the run saved at or after that step (``find_checkpoint``: the run's
-newest model or a kept checkpoint), runs every case of ``evaluation_cases`` (its robot's) on
-``eval_episodes`` robots (robot i seeded ``eval_seed + i``, the same robots for every agent, so two agents
-pair robot by robot) and writes, in ``<run>/evaluations/``::
+An entry of the campaign's queue (``sb3_huri.experiments.campaign.queue``) trains a run folder up to
+``entry.steps``; its evaluation takes the first model the run saved at or after that step
+(``find_checkpoint``: the run's newest model or a kept checkpoint), runs every case of ``evaluation_cases``
+(its robot's) on ``eval_episodes`` robots (robot i seeded ``eval_seed + i``, the same robots for every agent,
+so two agents pair robot by robot) and writes, in ``<run>/evaluations/``::
 
     <steps>.json                   entry, protocol, method, seed, steps, the run's training wall time and
                                    hardware up to that step, the settings, and per case the metrics of
@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_huri.experiments.campaign.queue import ENV_ID, EVALUATIONS, CampaignEntry
 from sb3_huri.experiments.evaluation import (
     PROTOCOL,
     RISK_CASES,
@@ -43,7 +44,6 @@ from sb3_huri.experiments.evaluation import (
     write_trace,
 )
 from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json
-from sb3_huri.experiments.queue import ENV_ID, EVALUATIONS, CampaignEntry
 from sb3_huri.experiments.robustness import wall_time_at
 from zerith_gym.task import EPISODE_STEPS
 

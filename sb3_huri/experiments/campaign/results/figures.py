@@ -11,16 +11,11 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.evaluation import (
-    PLANE_CASE,
-    RISK_CASES,
-    read_trace,
-)
-from sb3_huri.experiments.final_evaluation import (
+from sb3_huri.experiments.campaign.final_evaluation import (
     trace_path,
 )
-from sb3_huri.experiments.queue import PROTOCOLS, CampaignEntry
-from sb3_huri.experiments.results.evaluations import (
+from sb3_huri.experiments.campaign.queue import PROTOCOLS, CampaignEntry
+from sb3_huri.experiments.campaign.results.evaluations import (
     FIGURE_DPI,
     METHOD_COLORS,
     PROTOCOL_STYLES,
@@ -33,10 +28,15 @@ from sb3_huri.experiments.results.evaluations import (
     smoothed_curve,
     table1_mean,
 )
-from sb3_huri.experiments.results.markdown import (
+from sb3_huri.experiments.campaign.results.markdown import (
     figure_lines,
     link,
     share_cell,
+)
+from sb3_huri.experiments.evaluation import (
+    PLANE_CASE,
+    RISK_CASES,
+    read_trace,
 )
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.zoo.curve import final_return, read_curve

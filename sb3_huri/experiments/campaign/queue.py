@@ -2,8 +2,8 @@
 
 A queue file (``runs/campaign.yml``) lists entries; each trains one run folder (RL Zoo's layout, written by
 ``sb3_huri.experiments.trainer``) up to a number of steps, then evaluates that checkpoint once under the
-paper's protocol (``sb3_huri.experiments.final_evaluation``). Paths in the file are relative to the file's
-own folder. The same run folder may appear in several entries (trained to 150M, later on to 285M)::
+paper's protocol (``sb3_huri.experiments.campaign.final_evaluation``). Paths in the file are relative to
+the file's own folder. The same run folder may appear in several entries (trained to 150M, later on to 285M)::
 
     defaults:                  # optional; these are the defaults
       robustness_every: 5000000  # a robustness row (Table 1 on 50 robots) every this many steps

@@ -10,8 +10,8 @@ redone on more without losing the points whose checkpoints are gone.
 
 ``write_summary`` writes the run's status (sessions, training figures per 1M steps from ``curve.csv``) and
 the curve as markdown into the run folder (``robustness.md``): the run's own record, regenerated from its
-files. The campaign's results page (``sb3_huri.experiments.results``) draws every run's curve beside the
-others. ``benchmarks/robustness_curve.py`` is the command line.
+files. The campaign's results page (``sb3_huri.experiments.campaign.results``) draws every run's curve
+beside the others. ``benchmarks/robustness_curve.py`` is the command line.
 """
 
 from __future__ import annotations

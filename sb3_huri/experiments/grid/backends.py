@@ -25,7 +25,7 @@ import sys
 from collections.abc import Iterable
 from typing import Any, Protocol
 
-from sb3_huri.experiments.job import RunJob, RunOutcome, execute_run
+from sb3_huri.experiments.grid.job import RunJob, RunOutcome, execute_run
 from sb3_huri.experiments.layout import ExperimentError
 
 TASK_RETRIES = 3

@@ -8,8 +8,8 @@ from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from sb3_huri.experiments.backends import Backend, LocalBackend, RayBackend
-from sb3_huri.experiments.job import RunJob, RunOutcome, is_finished
+from sb3_huri.experiments.grid.backends import Backend, LocalBackend, RayBackend
+from sb3_huri.experiments.grid.job import RunJob, RunOutcome, is_finished
 from sb3_huri.experiments.layout import (
     EvalSettings,
     ExperimentError,

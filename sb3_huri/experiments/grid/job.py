@@ -57,7 +57,7 @@ def execute_run(task: RunJob) -> RunOutcome:
     import torch as th
 
     from sb3_huri.experiments.evaluation import evaluate_run
-    from sb3_huri.experiments.training import env_workers, train_run
+    from sb3_huri.experiments.grid.training import env_workers, train_run
 
     th.set_num_threads(1)  # small networks: one thread is fastest, and the runs share the machine
     out = Path(task.out)

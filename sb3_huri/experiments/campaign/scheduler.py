@@ -30,8 +30,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.experiments.campaign.queue import ENV_ID, CampaignEntry, load_queue
 from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.queue import ENV_ID, CampaignEntry, load_queue
 
 DEFAULT_QUEUE = Path("runs") / "campaign.yml"
 CHECKPOINT_FREQ = 1_000_000
@@ -46,7 +46,7 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
     """Train `entry` up to its steps (resuming its run), then evaluate it; returns its state afterwards.
 
     A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued."""
-    from sb3_huri.experiments.final_evaluation import evaluate_entry
+    from sb3_huri.experiments.campaign.final_evaluation import evaluate_entry
     from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
     from sb3_huri.zoo import read_preset
 

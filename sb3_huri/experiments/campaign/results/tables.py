@@ -10,11 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.final_evaluation import PARTIAL, evaluation_cases, hardware_until
-from sb3_huri.experiments.layout import read_json
-from sb3_huri.experiments.queue import EVALUATIONS, PROTOCOLS, CampaignEntry
-from sb3_huri.experiments.results.evaluations import (
+from sb3_huri.experiments.campaign.final_evaluation import PARTIAL, evaluation_cases, hardware_until
+from sb3_huri.experiments.campaign.queue import EVALUATIONS, PROTOCOLS, CampaignEntry
+from sb3_huri.experiments.campaign.results.evaluations import (
     BASELINE,
     SURVIVAL_CASES,
     Evaluated,
@@ -25,13 +23,15 @@ from sb3_huri.experiments.results.evaluations import (
     pairs,
     table1_mean,
 )
-from sb3_huri.experiments.results.markdown import (
+from sb3_huri.experiments.campaign.results.markdown import (
     difference_cell,
     link,
     millions,
     share_cell,
     verdict,
 )
+from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
+from sb3_huri.experiments.layout import read_json
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
 
 

@@ -16,9 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sb3_huri.experiments.queue import CampaignEntry
-from sb3_huri.experiments.results.evaluations import FIGURE_DPI, method_label, runs_of, smoothed_curve
-from sb3_huri.experiments.results.markdown import figure_lines, link, millions
+from sb3_huri.experiments.campaign.queue import CampaignEntry
+from sb3_huri.experiments.campaign.results.evaluations import (
+    FIGURE_DPI,
+    method_label,
+    runs_of,
+    smoothed_curve,
+)
+from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.zoo.curve import read_curve

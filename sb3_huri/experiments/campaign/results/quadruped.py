@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sb3_huri.experiments.final_evaluation import QUADRUPED_CASES
-from sb3_huri.experiments.queue import CampaignEntry
-from sb3_huri.experiments.results.evaluations import Evaluated, runs_of, smoothed_curve
-from sb3_huri.experiments.results.markdown import figure_lines, link, share_cell
+from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
+from sb3_huri.experiments.campaign.queue import CampaignEntry
+from sb3_huri.experiments.campaign.results.evaluations import Evaluated, runs_of, smoothed_curve
+from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, share_cell
 from sb3_huri.zoo.curve import read_curve
 
 PAPER_TABLE8 = {

@@ -13,15 +13,15 @@ import numpy as np
 import yaml
 
 from sb3_huri.experiments import paper
+from sb3_huri.experiments.campaign.queue import ENV_ID, CampaignEntry
+from sb3_huri.experiments.campaign.results.markdown import (
+    millions,
+)
 from sb3_huri.experiments.evaluation import (
     PLANE_CASE,
     TABLE1_SCENARIOS,
 )
 from sb3_huri.experiments.layout import ExperimentError, read_json
-from sb3_huri.experiments.queue import ENV_ID, CampaignEntry
-from sb3_huri.experiments.results.markdown import (
-    millions,
-)
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.zoo.curve import read_curve
 

@@ -1,10 +1,10 @@
 """One run's robustness curve as a figure, with the runs forked from it and other methods' runs beside it.
 
-The campaign's results page draws every run's Table-1 mean on one axis (``sb3_huri.experiments.results``);
-this figure looks into one run: each Table-1 case, ``side-impact``, the Table-1 mean with its 95% Wilson
-band and the curriculum's scale, and the Table-1 mean of forks (copies of the run trained on from one of
-its checkpoints, with a change) and of other methods' runs trained with the same recipe.
-``benchmarks/robustness_curve.py --plot`` draws it.
+The campaign's results page draws every run's Table-1 mean on one axis
+(``sb3_huri.experiments.campaign.results``); this figure looks into one run: each Table-1 case,
+``side-impact``, the Table-1 mean with its 95% Wilson band and the curriculum's scale, and the Table-1 mean of
+forks (copies of the run trained on from one of its checkpoints, with a change) and of other methods' runs
+trained with the same recipe. ``benchmarks/robustness_curve.py --plot`` draws it.
 """
 
 from __future__ import annotations

@@ -1,0 +1,13 @@
+"""The analyses behind the scripts of ``benchmarks/`` (each script only parses its command line):
+
+- ``robustness_curves`` and ``robustness_plot``: a long run's robustness curve from its kept checkpoints,
+  its status, trend and shipping check (``<run>/robustness.md``), and its figure with forks and other
+  methods beside it (``robustness_curve.py``);
+- ``agents``: agents re-evaluated case by case, and two agents compared on the same robots
+  (``eval_agents.py``, ``compare_agents.py``);
+- ``domain_survival``: survival against the domain parameters each robot drew (``survival_by_domain.py``);
+- ``force_exposure``: robot-steps and falls under each force of a training scenario (``force_exposure.py``);
+- ``impulses``: survival of single pushes, and Table 1's pushes counted one by one (``impulse_envelope.py``);
+- ``expectation_fit``: the expectation loss's two readings fitting a known distribution
+  (``bench_expectation_loss.py``).
+"""
