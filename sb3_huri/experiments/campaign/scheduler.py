@@ -213,10 +213,12 @@ def status_table(queue: Path) -> str:
     header = f"{'entry':24} {'protocol':10} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     entries = load_queue(queue)
+    trained: dict[Path, int] = {}  # steps each run folder holds
     for entry in entries:
         state_file = entry.run / entry.env_id / "state.json"
         hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
         steps, state = entry.trained_steps(), entry.state()
+        trained[entry.run] = steps
         rate = recent_rate(entry.run) if state == "train" else None
         speed = (
             f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
@@ -228,8 +230,7 @@ def status_table(queue: Path) -> str:
     targets: dict[Path, int] = {}
     for entry in entries:
         targets[entry.run] = max(targets.get(entry.run, 0), entry.steps)
-    runs = {entry.run: entry for entry in entries}
-    done = sum(min(runs[run].trained_steps(), target) for run, target in targets.items())
+    done = sum(min(trained[run], target) for run, target in targets.items())
     total = sum(targets.values())
     lines.append(
         f"queue: {done:,} of {total:,} steps trained ({100 * done / total:.0f}%) in {len(targets)} run "
