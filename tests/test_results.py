@@ -385,7 +385,8 @@ def _shape_run(folder: Path, steps: int, ret: float, fall: float, speed: float, 
 
 def test_the_rollout_shape_section_holds_each_wide_seed_to_its_32_robot_seed(tmp_path: Path) -> None:
     """`robust-256` runs against the `robust` run of their method and seed: values at every checkpoint,
-    the nearest robustness row, samples per second, and a t interval over seeds of the return difference."""
+    the nearest robustness row, samples per second, a t interval over seeds of the return difference, and
+    the paired final evaluations where both shapes were evaluated at the same step."""
     (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
     _shape_run(tmp_path / "wide0", 2000, 110.0, 0.10, 10.0, {1000: 0.2, 2000: 0.3})
     _shape_run(tmp_path / "wide1", 2000, 105.0, 0.20, 10.0, {1000: 0.1})
@@ -404,8 +405,26 @@ def test_the_rollout_shape_section_holds_each_wide_seed_to_its_32_robot_seed(tmp
     ]
     queue = {"defaults": {"robustness_every": 1000}, "entries": entries}
     (tmp_path / "campaign.yml").write_text(yaml.safe_dump(queue))
+    rng = np.random.default_rng(3)
+    # Seed 1: both shapes evaluated at 2000 steps on the same robots; seed 0 at 2000 and 3000: not paired.
+    wide1 = _evaluation(tmp_path / "wide1", "wide-s1", "huri", 1, 2000, rng)
+    ref1 = _evaluation(tmp_path / "ref1", "ref-s1", "huri-baseline", 1, 2000, rng)
+    _evaluation(tmp_path / "wide0", "wide-s0", "huri", 0, 2000, rng)
+    _evaluation(tmp_path / "ref0", "ref-s0", "huri", 0, 3000, rng)
     page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
     section = page[page.index("## 8. Rollout shape") :]
+    assert "on the same robots: 1 seed (one seed: an anecdote)" in section
+    assert "**wide-s1 @ 0.0M minus ref-s1 @ 0.0M** (HuRi, seed 1)" in section
+    assert "wide-s0 @" not in section
+    row = next(line for line in section.splitlines() if line.startswith("| sudden-feet |"))
+    a, b = wide1["sudden-feet"], ref1["sudden-feet"]
+    difference, low, high = paired_difference_interval(a, b)
+    assert row.startswith(f"| sudden-feet | {a.mean():.2f} | {b.mean():.2f} | ")
+    assert f"| {difference:+.3f} [{low:+.3f}, {high:+.3f}] |" in row
+    assert f"| {int(np.sum(a & ~b))} | {int(np.sum(~a & b))} |" in row
+    per_robot = np.mean([wide1[c].astype(float) - ref1[c].astype(float) for c in TABLE1_SCENARIOS], axis=0)
+    mean_row = next(line for line in section.splitlines() if line.startswith("| Table-1 mean (t over"))
+    assert f"| {per_robot.mean():+.3f} [" in mean_row
     table = [line for line in section.splitlines() if line.startswith("| HuRi |")]
     assert table == [
         "| HuRi | 0 | 0.0M | 110.0 | 100.0 | 0.10 | 0.15 | 0.200 | 0.250 |",

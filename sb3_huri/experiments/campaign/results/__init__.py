@@ -14,7 +14,8 @@
 5. ``tracking.png``: velocity-tracking errors under load, friction and both (Fig. 4 analog);
 6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog) and its Table 8 analog;
-8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed.
+8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
+   and their final evaluations on the same robots where both were evaluated at comparable steps.
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.
@@ -74,7 +75,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
         *quadruped_section(quadruped, load_evaluations(quadruped), figures, out),
-        *rollout_shape_section(entries, figures, out),
+        *rollout_shape_section(entries, evaluations, figures, out),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")
     return out

@@ -19,11 +19,14 @@ import numpy as np
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.evaluations import (
     FIGURE_DPI,
+    Evaluated,
+    comparable,
     method_label,
     runs_of,
     smoothed_curve,
 )
 from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions
+from sb3_huri.experiments.campaign.results.tables import pair_table
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.zoo.curve import read_curve
@@ -121,6 +124,30 @@ def _speed_lines(pairs: Sequence[tuple[CampaignEntry, CampaignEntry]], out: Path
     return [*lines, ""] if lines else []
 
 
+def _final_evaluation_lines(
+    pairs: Sequence[tuple[CampaignEntry, CampaignEntry]], evaluations: Sequence[Evaluated]
+) -> list[str]:
+    """Each pair's final evaluations at comparable steps, on the same robots: per case and the Table-1 mean,
+    256 x 64 minus 32 x 512 with paired intervals (section 2's tables)."""
+    tables, seeds = [], set()
+    for wide, reference in pairs:
+        for first in (e for e in evaluations if e.entry.run == wide.run):
+            for second in (e for e in evaluations if e.entry.run == reference.run and comparable(first, e)):
+                seeds.add(wide.seed)
+                who = f"{method_label(wide.method)}, seed {wide.seed}"
+                heading = f"**{first.label} minus {second.label}** ({who})"
+                tables += [heading, "", *pair_table(first, second, "256 x 64", "32 x 512")]
+    if not tables:
+        return []
+    count = f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''}"
+    caveat = " (one seed: an anecdote)" if len(seeds) == 1 else ""
+    return [
+        f"Final evaluations of both shapes at comparable steps, on the same robots: {count}{caveat}.",
+        "",
+        *tables,
+    ]
+
+
 def _finding(differences: Sequence[float], step_note: str) -> str:
     """What the return differences at the last checkpoints say, over seeds."""
     mean, half, count = mean_ci(differences)
@@ -136,8 +163,11 @@ def _finding(differences: Sequence[float], step_note: str) -> str:
             f"[{low:+.1f}, {high:+.1f}] (95% t over seeds): {reading}.")  # fmt: skip
 
 
-def rollout_shape_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> list[str]:
-    """Section 8: the ``robust-256`` runs against the ``robust`` runs of their method and seed."""
+def rollout_shape_section(
+    entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated], figures: Path, out: Path
+) -> list[str]:
+    """Section 8: the ``robust-256`` runs against the ``robust`` runs of their method and seed: training
+    curves at the same steps, then final evaluations where both were evaluated at comparable steps."""
     if not any(entry.protocol == WIDE for entry in entries):
         return []
     path = figures / "rollout_shape.png"
@@ -175,6 +205,7 @@ def rollout_shape_section(entries: Sequence[CampaignEntry], figures: Path, out: 
         "",
         f"- {_finding(differences, step_note)}",
         *_speed_lines(pairs, out),
+        *_final_evaluation_lines(pairs, evaluations),
         *figure_lines(path, out),
     ]
 

@@ -230,7 +230,7 @@ def table1_section(evaluations: Sequence[Evaluated]) -> list[str]:
     return lines
 
 
-def _pair_table(first: Evaluated, second: Evaluated, first_name: str, second_name: str) -> list[str]:
+def pair_table(first: Evaluated, second: Evaluated, first_name: str, second_name: str) -> list[str]:
     """Per case: both shares, ``first - second`` with Newcombe's paired 95% interval, the robots only one
     of them survived; then the Table-1 mean's paired difference (t over the robots)."""
     lines = [
@@ -295,7 +295,7 @@ def pairs_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Evalua
             f"**{first.label} minus {second.label}** ({first.entry.protocol}, seed {first.entry.seed})",
             "",
         ]
-        lines += _pair_table(first, second, name, "PPO")
+        lines += pair_table(first, second, name, "PPO")
     if not found:
         lines += ["No pair of a method and PPO is evaluated at comparable steps yet.", ""]
     waiting = _waiting_pairs(entries)
@@ -304,7 +304,7 @@ def pairs_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Evalua
     lines += _seed_differences(found)
     for later, earlier in later_checkpoints(evaluations):
         lines += [f"**{later.label} minus {earlier.label}**: the same run trained on, on the same robots", ""]
-        lines += _pair_table(later, earlier, millions(later.steps), millions(earlier.steps))
+        lines += pair_table(later, earlier, millions(later.steps), millions(earlier.steps))
     return lines
 
 
