@@ -406,15 +406,21 @@ def test_the_rollout_shape_section_holds_each_wide_seed_to_its_32_robot_seed(tmp
     queue = {"defaults": {"robustness_every": 1000}, "entries": entries}
     (tmp_path / "campaign.yml").write_text(yaml.safe_dump(queue))
     rng = np.random.default_rng(3)
-    # Seed 1: both shapes evaluated at 2000 steps on the same robots; seed 0 at 2000 and 3000: not paired.
+    # Seed 1: both shapes evaluated within one rollout (32 samples) of each other on the same robots. Seed 0:
+    # at the same step, but on other robots (other evaluation settings): not paired.
+    for run in ("wide1", "ref1"):
+        (tmp_path / run / ENV / "config.yml").write_text(yaml.safe_dump({"n_envs": 4, "n_steps": 8}))
     wide1 = _evaluation(tmp_path / "wide1", "wide-s1", "huri", 1, 2000, rng)
-    ref1 = _evaluation(tmp_path / "ref1", "ref-s1", "huri-baseline", 1, 2000, rng)
+    ref1 = _evaluation(tmp_path / "ref1", "ref-s1", "huri", 1, 2016, rng)
     _evaluation(tmp_path / "wide0", "wide-s0", "huri", 0, 2000, rng)
-    _evaluation(tmp_path / "ref0", "ref-s0", "huri", 0, 3000, rng)
+    _evaluation(tmp_path / "ref0", "ref-s0", "huri", 0, 2000, rng)
+    other_robots = tmp_path / "ref0" / "evaluations" / "2000.json"
+    record = json.loads(other_robots.read_text())
+    other_robots.write_text(json.dumps({**record, "settings": {**record["settings"], "seed": 3000}}))
     page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
     section = page[page.index("## 8. Rollout shape") :]
-    assert "on the same robots: 1 seed (one seed: an anecdote)" in section
-    assert "**wide-s1 @ 0.0M minus ref-s1 @ 0.0M** (HuRi, seed 1)" in section
+    assert "One seed so far: an anecdote." in section
+    assert section.count("**wide-s1 @ 0.0M minus ref-s1 @ 0.0M** (HuRi, seed 1)") == 1
     assert "wide-s0 @" not in section
     row = next(line for line in section.splitlines() if line.startswith("| sudden-feet |"))
     a, b = wide1["sudden-feet"], ref1["sudden-feet"]

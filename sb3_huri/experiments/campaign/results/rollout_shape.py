@@ -128,21 +128,22 @@ def _final_evaluation_lines(
     pairs: Sequence[tuple[CampaignEntry, CampaignEntry]], evaluations: Sequence[Evaluated]
 ) -> list[str]:
     """Each pair's final evaluations at comparable steps, on the same robots: per case and the Table-1 mean,
-    256 x 64 minus 32 x 512 with paired intervals (section 2's tables)."""
-    tables, seeds = [], set()
+    256 x 64 minus 32 x 512 with section 2's paired intervals."""
+    tables, paired = [], set()
     for wide, reference in pairs:
         for first in (e for e in evaluations if e.entry.run == wide.run):
             for second in (e for e in evaluations if e.entry.run == reference.run and comparable(first, e)):
-                seeds.add(wide.seed)
+                paired.add((wide.method, wide.seed))
                 who = f"{method_label(wide.method)}, seed {wide.seed}"
                 heading = f"**{first.label} minus {second.label}** ({who})"
                 tables += [heading, "", *pair_table(first, second, "256 x 64", "32 x 512")]
     if not tables:
         return []
-    count = f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''}"
-    caveat = " (one seed: an anecdote)" if len(seeds) == 1 else ""
+    count = "one seed so far: an anecdote" if len(paired) == 1 else f"{len(paired)} seeds"
     return [
-        f"Final evaluations of both shapes at comparable steps, on the same robots: {count}{caveat}.",
+        "Final evaluations of both shapes at comparable steps (within one rollout), on the same robots, "
+        f"with section 2's paired intervals; a seed without them was not evaluated at a comparable step "
+        f"in both shapes. {count[0].upper()}{count[1:]}.",
         "",
         *tables,
     ]
