@@ -212,6 +212,35 @@ def test_an_entry_stopped_at_the_wall_time_limit_is_not_counted_as_a_failure(tmp
     assert "ended unfinished" not in result.stdout and "started again" not in result.stdout
 
 
+def test_the_device_chunk_script_trains_an_entry_and_packs_its_run_folder(tmp_path):
+    """`benchmarks/device_campaign_chunk.sh` (what a lent machine runs): the entry trained and evaluated
+    through the real command, its run folder packed without checkpoints/, and unpacked elsewhere a run that
+    the queue reads as done."""
+    import tarfile
+
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("huri-s0", "huri/Zerith1-v0_1", 64)], eval_episodes=2, episode_steps=10)
+    (tmp_path / "huri" / "Zerith1-v0_1" / "checkpoints").mkdir(parents=True)
+    (tmp_path / "huri" / "Zerith1-v0_1" / "checkpoints" / "old.zip").write_bytes(b"stays here")
+    out = tmp_path / "out"
+    env = {**os.environ, "QUEUE": str(queue), "PYTHON": sys.executable, "OUT": str(out)}
+    script = ROOT / "benchmarks" / "device_campaign_chunk.sh"
+    result = subprocess.run(["bash", str(script), "huri-s0", "2"], capture_output=True, text=True,
+                            timeout=300, env=env, cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr + (out / "train.log").read_text()[-3000:]
+    assert "packed into" in result.stdout and " done" in result.stdout
+    with tarfile.open(out / "run.tar") as packed:
+        names = packed.getnames()
+        assert not [name for name in names if "checkpoints" in name]
+        unpacked = tmp_path / "elsewhere"
+        packed.extractall(unpacked, filter="data")
+    (run,) = [unpacked / name for name in names if name.endswith("Zerith1-v0_1")]
+    assert RunState.read(run).timesteps == 64 and (run / "evaluations" / "64.json").is_file()
+    bad = subprocess.run(["bash", str(script), "nobody"], capture_output=True, text=True, timeout=120,
+                         env=env, cwd=tmp_path)  # fmt: skip
+    assert bad.returncode == 2 and "no entry named 'nobody'" in bad.stderr
+
+
 def test_a_quadruped_entry_trains_go2like_and_is_evaluated_on_its_own_cases(tmp_path):
     """A `quadruped` entry: the run folder holds `Go2Like-v0` files, no Table-1 robustness rows (they are
     Zerith-1's), and a final evaluation on the quadruped's cases (plane walking, Table 8's platforms)."""
