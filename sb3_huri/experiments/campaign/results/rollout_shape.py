@@ -139,11 +139,11 @@ def _final_evaluation_lines(
                 tables += [heading, "", *pair_table(first, second, "256 x 64", "32 x 512")]
     if not tables:
         return []
-    count = "one seed so far: an anecdote" if len(paired) == 1 else f"{len(paired)} seeds"
+    count = "One seed so far: an anecdote." if len(paired) == 1 else f"{len(paired)} seeds."
     return [
         "Final evaluations of both shapes at comparable steps (within one rollout), on the same robots, "
-        f"with section 2's paired intervals; a seed without them was not evaluated at a comparable step "
-        f"in both shapes. {count[0].upper()}{count[1:]}.",
+        "with section 2's paired intervals; a seed without them was not evaluated at a comparable step "
+        f"in both shapes. {count}",
         "",
         *tables,
     ]
