@@ -355,12 +355,18 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
         name = f"quadruped-rough-{'huri' if method == 'huri' else 'ppo'}-s0"
         entries.append(dict(name=name, protocol="quadruped", method=method, seed=0, conf="preset.yml",
                             run=f"quadruped-rough/{method}/{go2}_1", steps=640))  # fmt: skip
-    survived = {"platform-0.40": [1, 1, 0, 1], "platform-0.45": [1, 0, 0, 1], "nominal@1": [1] * 4}
-    cases = {case: {"survived": alive, "fall_step": [None] * 4} for case, alive in survived.items()}
-    cases["nominal@1"]["vx"] = 0.968
-    record = {"entry": entries[0]["name"], "steps": 640, "cases": cases, "settings": {"episodes": 4}}
-    (tmp_path / entries[0]["run"] / "evaluations").mkdir()
-    (tmp_path / entries[0]["run"] / "evaluations" / "640.json").write_text(json.dumps(record))
+    survived = {
+        "huri": {"platform-0.40": [1, 1, 0, 1] * 5, "platform-0.45": [1, 0, 0, 1] * 5, "nominal@1": [1] * 20},
+        "huri-baseline": {"platform-0.40": [0, 1, 0, 0] * 5, "platform-0.45": [0, 1, 0, 1] * 5},
+    }
+    for entry in entries:
+        cases = {
+            c: {"survived": alive, "fall_step": [None] * 20} for c, alive in survived[entry["method"]].items()
+        }
+        cases.get("nominal@1", {})["vx"] = 0.968
+        record = {"entry": entry["name"], "steps": 640, "cases": cases, "settings": {"episodes": 20}}
+        (tmp_path / entry["run"] / "evaluations").mkdir()
+        (tmp_path / entry["run"] / "evaluations" / "640.json").write_text(json.dumps(record))
     (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
     page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
     assert "## 7. The quadruped" in page and "quadruped-rough-ppo-s0" in page
@@ -369,6 +375,28 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
     assert "| 0.75 [" in row and "| 0.50 [" in row and "| - |" in row  # 0.40 m, 0.45 m, nominal@0.5 missing
     assert row.endswith("| 0.97 | - |")  # forward velocity at 1 m/s; none at 0.5 m/s
     assert "PPO 65%, HuRi 93%" in page  # the paper's Table 8 beside
+    status = next(line for line in page.splitlines() if line.startswith("| quadruped-rough-ppo-s0 |"))
+    assert "done (evaluated at 640)" in status
+    # HuRi minus PPO on the same 20 robots: 0.40 m 15 vs 5 (10 only HuRi, 0 only PPO); 0.45 m 10 vs 10.
+    pair = page.split("**quadruped-rough-huri-s0 @ 0.0M minus quadruped-rough-ppo-s0 @ 0.0M**")[1]
+    platform40 = next(line for line in pair.splitlines() if line.startswith("| platform-0.40 |"))
+    difference, low, high = paired_difference_interval(
+        np.array(survived["huri"]["platform-0.40"], bool),
+        np.array(survived["huri-baseline"]["platform-0.40"], bool),
+    )
+    assert (
+        f"| 0.75 | 0.25 | {difference:+.3f} [{low:+.3f}, {high:+.3f}] | 10 | 0 | HuRi survives more |"
+        in platform40
+    )
+    platform45 = next(line for line in pair.splitlines() if line.startswith("| platform-0.45 |"))
+    assert "| 5 | 5 | the interval includes 0" in platform45
+    assert not any(
+        line.startswith("| nominal@1 |") for line in pair.split("##")[0].splitlines()
+    )  # PPO lacks it
+    finding = next(line for line in page.splitlines() if line.startswith("- quadruped-rough-huri-s0 minus"))
+    assert (
+        "platform-0.40 +0.500 [" in finding and "HuRi survives more" in finding and "One seed (0)" in finding
+    )
 
 
 def _shape_run(folder: Path, steps: int, ret: float, fall: float, speed: float, rows: dict[int, float]):

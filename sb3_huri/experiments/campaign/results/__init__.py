@@ -34,7 +34,7 @@ from sb3_huri.experiments.campaign.results.figures import (
     tracking_section,
 )
 from sb3_huri.experiments.campaign.results.markdown import link
-from sb3_huri.experiments.campaign.results.quadruped import quadruped_section
+from sb3_huri.experiments.campaign.results.quadruped import quadruped_findings, quadruped_section
 from sb3_huri.experiments.campaign.results.rollout_shape import rollout_shape_section
 from sb3_huri.experiments.campaign.results.tables import (
     findings_section,
@@ -54,6 +54,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
     entries = [entry for entry in every_entry if entry.env_id == ENV_ID]
     quadruped = [entry for entry in every_entry if entry.protocol == "quadruped"]
     evaluations = load_evaluations(entries)
+    quadruped_evaluations = load_evaluations(quadruped)
     figures = out.with_suffix("")
     figures.mkdir(parents=True, exist_ok=True)
     lines = [
@@ -66,15 +67,15 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         f"{entries[0].defaults.eval_seed if entries else '-'} + i, the same robots for every agent), "
         "20-s episodes at 1 m/s, success = no fall.",
         "",
-        *findings_section(every_entry, evaluations),
-        *status_section(every_entry, evaluations, out),
+        *findings_section(every_entry, evaluations, quadruped_findings(quadruped_evaluations)),
+        *status_section(every_entry, [*evaluations, *quadruped_evaluations], out),
         *table1_section(evaluations),
         *pairs_section(entries, evaluations),
         *robustness_section(entries, evaluations, figures, out),
         *returns_section(entries, figures, out),
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
-        *quadruped_section(quadruped, load_evaluations(quadruped), figures, out),
+        *quadruped_section(quadruped, quadruped_evaluations, figures, out),
         *rollout_shape_section(entries, evaluations, figures, out),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")

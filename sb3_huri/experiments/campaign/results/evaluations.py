@@ -140,14 +140,18 @@ def table1_mean(evaluated: Evaluated) -> tuple[float, float, float]:
 
 
 def pairs(evaluations: Sequence[Evaluated]) -> list[tuple[Evaluated, Evaluated]]:
-    """(method, PPO) evaluations of the same protocol and seed, at most one rollout apart, on the same
-    robots: every method other than the baseline against the baseline."""
+    """(method, PPO) evaluations of the same protocol, preset and seed, at most one rollout apart, on the
+    same robots: every method other than the baseline against the baseline."""
     found = []
     for first in evaluations:
         if first.entry.method == BASELINE:
             continue
         for second in evaluations:
-            same = (second.entry.protocol, second.entry.seed) == (first.entry.protocol, first.entry.seed)
+            same = (second.entry.protocol, second.entry.conf, second.entry.seed) == (
+                first.entry.protocol,
+                first.entry.conf,
+                first.entry.seed,
+            )
             if second.entry.method == BASELINE and same and comparable(first, second):
                 found.append((first, second))
     return found

@@ -11,8 +11,23 @@ import numpy as np
 
 from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.campaign.queue import CampaignEntry
-from sb3_huri.experiments.campaign.results.evaluations import Evaluated, runs_of, smoothed_curve
-from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, share_cell
+from sb3_huri.experiments.campaign.results.evaluations import (
+    Evaluated,
+    method_label,
+    pairs,
+    runs_of,
+    smoothed_curve,
+)
+from sb3_huri.experiments.campaign.results.markdown import (
+    difference_cell,
+    figure_lines,
+    link,
+    millions,
+    share_cell,
+    verdict,
+)
+from sb3_huri.experiments.campaign.results.tables import pair_table
+from sb3_huri.experiments.statistics import paired_difference_interval
 from sb3_huri.zoo.curve import read_curve
 
 PAPER_TABLE8 = {
@@ -20,6 +35,31 @@ PAPER_TABLE8 = {
     "platform-0.45": {"huri-baseline": 39.01, "huri": 80.55},
 }
 """The paper's Table 8: success (%) stepping down a platform, PPO (baseline) and HuRi, 5 seeds."""
+TABLE8_CASES = tuple(PAPER_TABLE8)
+
+
+def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
+    """Lines of the page's findings: each quadruped pair of a method and PPO (same preset and seed, at
+    comparable steps) on Table 8's platforms, paired on the same robots; and whether one seed is all."""
+    lines = []
+    for first, second in pairs([e for e in evaluations if e.entry.protocol == "quadruped"]):
+        name = method_label(first.entry.method)
+        parts = []
+        for case in TABLE8_CASES:
+            a, b = first.survived(case), second.survived(case)
+            if a is None or b is None or a.shape != b.shape:
+                continue
+            difference, low, high = paired_difference_interval(a, b)
+            reading = verdict(low, high, name, "PPO")
+            parts.append(f"{case} {difference_cell(difference, low, high)}: {reading}")
+        if parts:
+            lines.append(
+                f"- {first.entry.name} minus {second.entry.name} ({millions(first.steps)} vs "
+                f"{millions(second.steps)} steps), survival on the same robots (Table 8 analog): "
+                + "; ".join(parts)
+                + f". One seed ({first.entry.seed}): an anecdote, no interval over seeds yet."
+            )
+    return lines
 
 
 def quadruped_section(
@@ -100,4 +140,12 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
         f"{case}: PPO {values['huri-baseline']:.0f}%, HuRi {values['huri']:.0f}%"
         for case, values in PAPER_TABLE8.items()
     )
-    return [*lines, "", f"The paper's Table 8 (Go2 in Isaac Gym, 5 seeds): {paper}.", ""]
+    lines += ["", f"The paper's Table 8 (Go2 in Isaac Gym, 5 seeds): {paper}.", ""]
+    for first, second in pairs(shown):
+        lines += [
+            f"**{first.label} minus {second.label}** on the same robots ({first.entry.protocol}, seed "
+            f"{first.entry.seed}; Newcombe's paired 95% interval per case, as in section 2)",
+            "",
+            *pair_table(first, second, method_label(first.entry.method), "PPO", QUADRUPED_CASES),
+        ]
+    return lines

@@ -35,8 +35,11 @@ from sb3_huri.experiments.layout import read_json
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
 
 
-def findings_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated]) -> list[str]:
-    """Generated sentences: what the evaluations show, and what they cannot show yet."""
+def findings_section(
+    entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated], more: Sequence[str] = ()
+) -> list[str]:
+    """Generated sentences: what the evaluations show, and what they cannot show yet; ``more``: further
+    findings (lines of the list) of other robots' sections."""
     lines = ["## What the numbers show, and what they do not", ""]
     states = {entry.name: entry.state() for entry in entries}
     done = [name for name, state in states.items() if state == "done"]
@@ -69,7 +72,7 @@ def findings_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Eva
                 f"- {method_label(method)}, {protocol} protocol: one seed ({seeds[0]}): an anecdote, no "
                 "interval over seeds yet."
             )
-    return [*lines, ""]
+    return [*lines, *more, ""]
 
 
 def _seeds(evaluations: Sequence[Evaluated]) -> dict[tuple[str, str], list[int]]:
@@ -230,15 +233,22 @@ def table1_section(evaluations: Sequence[Evaluated]) -> list[str]:
     return lines
 
 
-def pair_table(first: Evaluated, second: Evaluated, first_name: str, second_name: str) -> list[str]:
-    """Per case: both shares, ``first - second`` with Newcombe's paired 95% interval, the robots only one
-    of them survived; then the Table-1 mean's paired difference (t over the robots)."""
+def pair_table(
+    first: Evaluated,
+    second: Evaluated,
+    first_name: str,
+    second_name: str,
+    cases: Sequence[str] = SURVIVAL_CASES,
+) -> list[str]:
+    """Per case of ``cases`` both hold: both shares, ``first - second`` with Newcombe's paired 95% interval,
+    the robots only one of them survived; then the Table-1 mean's paired difference (t over the robots),
+    where both hold the six Table-1 cases."""
     lines = [
         f"| case | {first_name} | {second_name} | difference [95%] | only {first_name} survived | "
         f"only {second_name} survived | reading |",
         "|---|---|---|---|---|---|---|",
     ]
-    for case in SURVIVAL_CASES:
+    for case in cases:
         a, b = first.survived(case), second.survived(case)
         if a is None or b is None or a.shape != b.shape:
             continue
