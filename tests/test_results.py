@@ -31,6 +31,7 @@ from sb3_huri.experiments.evaluation import (
     PLANE_CASE,
     RISK_CASES,
     TABLE1_SCENARIOS,
+    TERRAIN_SCENARIOS,
     RiskTrace,
     write_trace,
 )
@@ -41,7 +42,15 @@ from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
 ENV = "Zerith1-v0"
 ROBOTS = 40
 ROLLOUT = 32  # n_envs * n_steps of the synthetic runs' config.yml
-CASES = (*TABLE1_SCENARIOS, "side-impact", "load", "friction", "load-friction", *RISK_CASES)
+CASES = (
+    *TABLE1_SCENARIOS,
+    "side-impact",
+    "load",
+    "friction",
+    "load-friction",
+    *RISK_CASES,
+    *TERRAIN_SCENARIOS,
+)
 
 
 def _run(folder: Path, steps: int, wall_s: float, hardware: str) -> None:
@@ -199,6 +208,27 @@ def test_paired_differences_are_huri_minus_ppo_on_the_same_robots(campaign) -> N
     cells = _row(page, "Table-1 mean (t over robots)", after)
     assert cells[3] == f"{mean:+.3f} [{mean - half:+.3f}, {mean + half:+.3f}]"
     assert f"Table-1 mean on the same robots: {cells[3]}" in page  # the finding at the top says it too
+
+
+def test_the_terrain_section_shows_every_agent_and_pairs_them_on_the_terrain_cases(campaign) -> None:
+    root, outcomes = campaign
+    page = _page(root)
+    section = page[page.index("## 9.") :]
+    header = _row(section, "agent")
+    for case in TERRAIN_SCENARIOS:
+        alive = outcomes["huri-s1"][case]
+        low, high = stats.binomtest(int(alive.sum()), alive.size).proportion_ci(method="wilson")
+        assert _row(section, "huri-s1")[header.index(case)] == f"{alive.mean():.2f} [{low:.2f}, {high:.2f}]"
+    paper_huri = _row(section, "*paper: HuRi*")
+    assert paper_huri[header.index("multi-terrain")] == "0.578"  # Table 9; Table 8 is the quadruped's
+    assert paper_huri[header.index("platform-0.40")] == "-"
+    after = "**huri-s0 @ 0.0M minus ppo-s0 @ 0.0M**"
+    huri, ppo = outcomes["huri-s0"], outcomes["ppo-s0"]
+    for case in TERRAIN_SCENARIOS:
+        difference, low, high = paired_difference_interval(huri[case], ppo[case])
+        assert _row(section, case, after)[3] == f"{difference:+.3f} [{low:+.3f}, {high:+.3f}]"
+    assert "Table-1 mean (t over robots)" not in section  # section 2 has it; these are other cases
+    assert "No HuRi-PPO pair of the `terrain` protocol is evaluated yet." in section
 
 
 def test_figures_are_drawn_small_and_linked(campaign) -> None:

@@ -15,7 +15,9 @@
 6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog) and its Table 8 analog;
 8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
-   and their final evaluations on the same robots where both were evaluated at comparable steps.
+   and their final evaluations on the same robots where both were evaluated at comparable steps;
+9. the Table 9 analog: Zerith-1's survival on the multi-terrain test and down the platforms, beside the
+   paper's Table 9, and the HuRi-PPO pairs on these cases, on the same robots.
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.
@@ -42,6 +44,7 @@ from sb3_huri.experiments.campaign.results.tables import (
     status_section,
     table1_section,
 )
+from sb3_huri.experiments.campaign.results.terrains import terrain_section
 from sb3_huri.experiments.layout import atomic_write_text
 
 
@@ -77,6 +80,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *risk_section(evaluations, figures, out),
         *quadruped_section(quadruped, quadruped_evaluations, figures, out),
         *rollout_shape_section(entries, evaluations, figures, out),
+        *terrain_section(evaluations),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")
     return out

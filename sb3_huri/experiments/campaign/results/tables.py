@@ -241,8 +241,8 @@ def pair_table(
     cases: Sequence[str] = SURVIVAL_CASES,
 ) -> list[str]:
     """Per case of ``cases`` both hold: both shares, ``first - second`` with Newcombe's paired 95% interval,
-    the robots only one of them survived; then the Table-1 mean's paired difference (t over the robots),
-    where both hold the six Table-1 cases."""
+    the robots only one of them survived; then, where ``cases`` and both evaluations hold the six Table-1
+    cases, the Table-1 mean's paired difference (t over the robots)."""
     lines = [
         f"| case | {first_name} | {second_name} | difference [95%] | only {first_name} survived | "
         f"only {second_name} survived | reading |",
@@ -259,7 +259,7 @@ def pair_table(
             f"{int(np.sum(a & ~b))} | {int(np.sum(~a & b))} | {reading} |"
         )
     mean, low, high = mean_difference(first, second)
-    if math.isfinite(mean):
+    if set(TABLE1_SCENARIOS) <= set(cases) and math.isfinite(mean):
         lines.append(
             f"| Table-1 mean (t over robots) | {table1_mean(first)[0]:.3f} | {table1_mean(second)[0]:.3f} | "
             f"{difference_cell(mean, low, high)} | - | - | {verdict(low, high, first_name, second_name)} |"

@@ -1,0 +1,65 @@
+"""Zerith-1's section of the results page on terrains: the Table 9 analog (survival on the paper's
+multi-terrain test) and stepping down Table 8's platforms (the paper's are the quadruped's: section 7) for
+every evaluated Zerith-1 agent, beside the paper's Table 9, and every HuRi-PPO pair on these cases, paired on
+the same robots (the ``terrain`` protocol's are the paper's appendix A.7 training)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from sb3_huri.experiments import paper
+from sb3_huri.experiments.campaign.queue import PROTOCOLS
+from sb3_huri.experiments.campaign.results.evaluations import Evaluated, method_label, pairs
+from sb3_huri.experiments.campaign.results.markdown import share_cell
+from sb3_huri.experiments.campaign.results.tables import pair_table
+from sb3_huri.experiments.evaluation import TERRAIN_SCENARIOS
+
+TERRAIN_PROTOCOL = "terrain"
+"""The campaign protocol that trains on terrains, as the paper's Table 9 agents did."""
+TABLE9_CASE = "multi-terrain"
+"""Table 9's test: rough slopes up and down and discrete blocks under U[0, 100] N on the centroid."""
+
+
+def terrain_section(evaluations: Sequence[Evaluated]) -> list[str]:
+    """Section 9: each evaluated agent's survival on the terrain cases, the paper's Table 9, and the pairs
+    of a method and PPO on them."""
+    lines = [
+        "## 9. Zerith-1 on terrains (Table 9 analog)",
+        "",
+        "Share of robots without a fall at 1 m/s, with its 95% Wilson interval: `multi-terrain` (Table 9: "
+        "rough slopes up and down and discrete blocks, robots spread over the 10 levels, U[0, 100] N on the "
+        "centroid), stepping down a 0.40 / 0.45 m platform (Table 8: U[0, 100] N on the centroid redrawn "
+        "every 2 s, +-1 kg; the paper tests its quadruped there, section 7). The paper's Table 9 agents "
+        f"trained on terrains (its appendix A.7: the `{TERRAIN_PROTOCOL}` protocol here); the other "
+        "protocols train on the plane and meet terrains only here. The paper's rows: its Table 9, 4 seeds on "
+        "its own robot.",
+        "",
+    ]
+    if not evaluations:
+        return [*lines, "No Zerith-1 entry is evaluated yet.", ""]
+    header = ["agent", "protocol", "seed", "steps", *TERRAIN_SCENARIOS]
+    lines += ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for protocol in PROTOCOLS:
+        for evaluated in (e for e in evaluations if e.entry.protocol == protocol):
+            cells = []
+            for case in TERRAIN_SCENARIOS:
+                outcomes = evaluated.survived(case)
+                cells.append("-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size))
+            entry = evaluated.entry
+            agent = f"| {entry.name} | {protocol} | {entry.seed} | {evaluated.steps:,} | "
+            lines.append(agent + " | ".join(cells) + " |")
+    for method, reference in paper.TERRAINS.items():
+        cells = [f"{reference[case]:.3f}" if case == TABLE9_CASE else "-" for case in TERRAIN_SCENARIOS]
+        agent = f"| *paper: {method_label(method)}* | terrains | 4 seeds | - | "
+        lines.append(agent + " | ".join(cells) + " |")
+    lines.append("")
+    for first, second in pairs(evaluations):
+        lines += [
+            f"**{first.label} minus {second.label}** on the same robots ({first.entry.protocol}, seed "
+            f"{first.entry.seed}; Newcombe's paired 95% interval per case, as in section 2)",
+            "",
+            *pair_table(first, second, method_label(first.entry.method), "PPO", TERRAIN_SCENARIOS),
+        ]
+    if not any(first.entry.protocol == TERRAIN_PROTOCOL for first, _ in pairs(evaluations)):
+        lines += [f"No HuRi-PPO pair of the `{TERRAIN_PROTOCOL}` protocol is evaluated yet.", ""]
+    return lines
