@@ -139,6 +139,11 @@ def table1_mean(evaluated: Evaluated) -> tuple[float, float, float]:
     return mean, max(mean - half, 0.0), min(mean + half, 1.0)
 
 
+def _recipe(evaluated: Evaluated) -> tuple[str, Path, int]:
+    """What two evaluations must share to pair: protocol, preset and seed."""
+    return evaluated.entry.protocol, evaluated.entry.conf, evaluated.entry.seed
+
+
 def pairs(evaluations: Sequence[Evaluated]) -> list[tuple[Evaluated, Evaluated]]:
     """(method, PPO) evaluations of the same protocol, preset and seed, at most one rollout apart, on the
     same robots: every method other than the baseline against the baseline."""
@@ -147,11 +152,7 @@ def pairs(evaluations: Sequence[Evaluated]) -> list[tuple[Evaluated, Evaluated]]
         if first.entry.method == BASELINE:
             continue
         for second in evaluations:
-            same = (second.entry.protocol, second.entry.conf, second.entry.seed) == (
-                first.entry.protocol,
-                first.entry.conf,
-                first.entry.seed,
-            )
+            same = _recipe(second) == _recipe(first)
             if second.entry.method == BASELINE and same and comparable(first, second):
                 found.append((first, second))
     return found

@@ -23,11 +23,9 @@ from sb3_huri.experiments.campaign.results.markdown import (
     figure_lines,
     link,
     millions,
-    share_cell,
     verdict,
 )
-from sb3_huri.experiments.campaign.results.tables import pair_table
-from sb3_huri.experiments.statistics import paired_difference_interval
+from sb3_huri.experiments.campaign.results.tables import case_difference, method_pair_lines, survival_cell
 from sb3_huri.zoo.curve import read_curve
 
 PAPER_TABLE8 = {
@@ -46,10 +44,10 @@ def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
         name = method_label(first.entry.method)
         parts = []
         for case in TABLE8_CASES:
-            a, b = first.survived(case), second.survived(case)
-            if a is None or b is None or a.shape != b.shape:
+            paired = case_difference(first, second, case)
+            if paired is None:
                 continue
-            difference, low, high = paired_difference_interval(a, b)
+            difference, low, high = paired[2]
             reading = verdict(low, high, name, "PPO")
             parts.append(f"{case} {difference_cell(difference, low, high)}: {reading}")
         if parts:
@@ -128,10 +126,7 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
         "|---|" + "---|" * (len(QUADRUPED_CASES) + len(walking)),
     ]
     for evaluated in shown:
-        cells = []
-        for case in QUADRUPED_CASES:
-            survived = evaluated.survived(case)
-            cells.append("-" if survived is None else share_cell(float(np.mean(survived)), len(survived)))
+        cells = [survival_cell(evaluated, case) for case in QUADRUPED_CASES]
         for case in walking:
             vx = evaluated.metric(case, "vx")
             cells.append("-" if not np.isfinite(vx) else f"{vx:.2f}")
@@ -142,10 +137,5 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
     )
     lines += ["", f"The paper's Table 8 (Go2 in Isaac Gym, 5 seeds): {paper}.", ""]
     for first, second in pairs(shown):
-        lines += [
-            f"**{first.label} minus {second.label}** on the same robots ({first.entry.protocol}, seed "
-            f"{first.entry.seed}; Newcombe's paired 95% interval per case, as in section 2)",
-            "",
-            *pair_table(first, second, method_label(first.entry.method), "PPO", QUADRUPED_CASES),
-        ]
+        lines += method_pair_lines(first, second, QUADRUPED_CASES)
     return lines

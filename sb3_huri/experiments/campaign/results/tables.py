@@ -161,12 +161,15 @@ def _clusters(group: Sequence[Evaluated]) -> list[list[Evaluated]]:
     return clusters
 
 
+def survival_cell(evaluated: Evaluated, case: str) -> str:
+    """The share of robots that survived ``case`` with its 95% Wilson interval ("-" if not evaluated)."""
+    outcomes = evaluated.survived(case)
+    return "-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size)
+
+
 def _table1_row(evaluated: Evaluated) -> str:
     """One agent's row of the Table-1 analog: each case with its Wilson interval, the mean with its t one."""
-    cells = []
-    for case in SURVIVAL_CASES:
-        outcomes = evaluated.survived(case)
-        cells.append("-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size))
+    cells = [survival_cell(evaluated, case) for case in SURVIVAL_CASES]
     mean, low, high = table1_mean(evaluated)
     cells.insert(len(TABLE1_SCENARIOS), "-" if math.isnan(mean) else f"{mean:.3f} [{low:.3f}, {high:.3f}]")
     entry = evaluated.entry
@@ -233,6 +236,27 @@ def table1_section(evaluations: Sequence[Evaluated]) -> list[str]:
     return lines
 
 
+def case_difference(
+    first: Evaluated, second: Evaluated, case: str
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float, float]] | None:
+    """Both agents' outcomes in ``case`` and ``first - second`` with Newcombe's paired 95% interval; None
+    unless both were evaluated on the same number of robots."""
+    a, b = first.survived(case), second.survived(case)
+    if a is None or b is None or a.shape != b.shape:
+        return None
+    return a, b, paired_difference_interval(a, b)
+
+
+def method_pair_lines(first: Evaluated, second: Evaluated, cases: Sequence[str]) -> list[str]:
+    """A method's evaluation minus PPO's on the same robots: heading and ``pair_table`` of ``cases``."""
+    return [
+        f"**{first.label} minus {second.label}** on the same robots ({first.entry.protocol}, seed "
+        f"{first.entry.seed}; Newcombe's paired 95% interval per case, as in section 2)",
+        "",
+        *pair_table(first, second, method_label(first.entry.method), "PPO", cases),
+    ]
+
+
 def pair_table(
     first: Evaluated,
     second: Evaluated,
@@ -249,10 +273,10 @@ def pair_table(
         "|---|---|---|---|---|---|---|",
     ]
     for case in cases:
-        a, b = first.survived(case), second.survived(case)
-        if a is None or b is None or a.shape != b.shape:
+        paired = case_difference(first, second, case)
+        if paired is None:
             continue
-        difference, low, high = paired_difference_interval(a, b)
+        a, b, (difference, low, high) = paired
         reading = verdict(low, high, first_name, second_name)
         lines.append(
             f"| {case} | {a.mean():.2f} | {b.mean():.2f} | {difference_cell(difference, low, high)} | "

@@ -10,8 +10,7 @@ from collections.abc import Sequence
 from sb3_huri.experiments import paper
 from sb3_huri.experiments.campaign.queue import PROTOCOLS
 from sb3_huri.experiments.campaign.results.evaluations import Evaluated, method_label, pairs
-from sb3_huri.experiments.campaign.results.markdown import share_cell
-from sb3_huri.experiments.campaign.results.tables import pair_table
+from sb3_huri.experiments.campaign.results.tables import method_pair_lines, survival_cell
 from sb3_huri.experiments.evaluation import TERRAIN_SCENARIOS
 
 TERRAIN_PROTOCOL = "terrain"
@@ -41,10 +40,7 @@ def terrain_section(evaluations: Sequence[Evaluated]) -> list[str]:
     lines += ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
     for protocol in PROTOCOLS:
         for evaluated in (e for e in evaluations if e.entry.protocol == protocol):
-            cells = []
-            for case in TERRAIN_SCENARIOS:
-                outcomes = evaluated.survived(case)
-                cells.append("-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size))
+            cells = [survival_cell(evaluated, case) for case in TERRAIN_SCENARIOS]
             entry = evaluated.entry
             agent = f"| {entry.name} | {protocol} | {entry.seed} | {evaluated.steps:,} | "
             lines.append(agent + " | ".join(cells) + " |")
@@ -53,13 +49,9 @@ def terrain_section(evaluations: Sequence[Evaluated]) -> list[str]:
         agent = f"| *paper: {method_label(method)}* | terrains | 4 seeds | - | "
         lines.append(agent + " | ".join(cells) + " |")
     lines.append("")
-    for first, second in pairs(evaluations):
-        lines += [
-            f"**{first.label} minus {second.label}** on the same robots ({first.entry.protocol}, seed "
-            f"{first.entry.seed}; Newcombe's paired 95% interval per case, as in section 2)",
-            "",
-            *pair_table(first, second, method_label(first.entry.method), "PPO", TERRAIN_SCENARIOS),
-        ]
-    if not any(first.entry.protocol == TERRAIN_PROTOCOL for first, _ in pairs(evaluations)):
+    found = pairs(evaluations)
+    for first, second in found:
+        lines += method_pair_lines(first, second, TERRAIN_SCENARIOS)
+    if not any(first.entry.protocol == TERRAIN_PROTOCOL for first, _ in found):
         lines += [f"No HuRi-PPO pair of the `{TERRAIN_PROTOCOL}` protocol is evaluated yet.", ""]
     return lines
