@@ -70,10 +70,12 @@ def test_rl_zoo_enjoy_loads_the_shipped_agent(algo: str, env_id: str, robot: str
 
 
 def test_readme_main_command_watches_every_shipped_agent_walk() -> None:
-    """The README's main command (after its install) runs each shipped agent at 0.5 m/s and reports it."""
+    """The README's main command (the block's last line, after its two set-up commands) runs each shipped
+    agent at 0.5 m/s and reports it."""
     readme = (REPO / "README.md").read_text()
     block = readme.split("<!-- main-command -->", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
-    watch = block.strip().split(" && ")[-1].split()
+    setup, watch = block.strip().splitlines()[:-1], block.strip().splitlines()[-1].split()
+    assert len(setup) == 2 and "pip install" in setup[1], block
     assert watch[:2] == ["python", "examples/watch_zerith.py"], block
     result = subprocess.run(
         [sys.executable, *watch[1:], "--episodes", "1"], cwd=REPO, capture_output=True, text=True, timeout=300
