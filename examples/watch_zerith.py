@@ -9,7 +9,8 @@
 
 By default the shipped agents run, one after the other: Zerith-1's HuRi (`trained_agents/huri/Zerith1-v0_1`)
 and PPO baseline (`trained_agents/huri-baseline/Zerith1-v0_1`), both walking at the 0.5 m/s command
-(docs/training.md), then the quadruped's HuRi agent (`trained_agents/huri/Go2Like-v0_1`, docs/go2like.md).
+(docs/training.md), then the quadruped's HuRi agent (`trained_agents/huri/Go2Like-v0_1`, trained on terrains,
+docs/go2like.md).
 An agent is a run folder in RL Zoo's layout (as written by `examples/train_zerith.py` or `rl_zoo3 train`):
 `<env id>.zip` and `<env id>/vecnormalize.pkl`, the env id `Zerith1-v0` or `Go2Like-v0`. The policy is
 deterministic (and `nominal` randomizes nothing, so its episodes are all the same). Each episode prints its

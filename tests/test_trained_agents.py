@@ -93,8 +93,8 @@ def test_readme_main_command_watches_every_shipped_agent_walk() -> None:
 
 
 def test_shipped_quadruped_walks_at_the_commanded_speed() -> None:
-    """The quadruped's agent (flat ground, docs/go2like.md): 4 robots of `nominal` walk their 20 s at 0.5
-    and 1 m/s, within 0.15 m/s of the command on average."""
+    """The quadruped's agent (trained on terrains, docs/go2like.md): 4 robots of `nominal` walk their 20 s at
+    0.5 and 1 m/s, within 0.15 m/s of the command on average."""
     from sb3_huri.experiments.evaluation import evaluate
     from sb3_huri.zoo import load_run
 
