@@ -18,7 +18,7 @@ from huri_helpers import ROOT, state_dicts_equal, tiny_robust_preset
 from sb3_huri import HuRiPPO
 from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.campaign.queue import load_queue
-from sb3_huri.experiments.campaign.scheduler import campaign_lock, run_entry, runnable, status_table
+from sb3_huri.experiments.campaign.scheduler import _reread, campaign_lock, run_entry, runnable, status_table
 from sb3_huri.experiments.layout import ExperimentError
 from sb3_huri.experiments.robustness import CASES, read_rows
 from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
@@ -71,6 +71,19 @@ def test_a_queue_with_a_repeated_name_or_no_entries_is_refused(tmp_path):
     (tmp_path / "empty.yml").write_text("defaults: {}\n")
     with pytest.raises(ExperimentError, match="a list under `entries:`"):
         load_queue(tmp_path / "empty.yml")
+
+
+def test_a_queue_file_that_stops_reading_while_the_campaign_runs_leaves_it_on_the_entries_last_read(tmp_path):
+    """The campaign re-reads its queue between checks of its children: an edit that names a method this code
+    does not know (or a torn write) keeps it going with the queue as it last read, saying why."""
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("a", "a/Zerith1-v0_1", 64)])
+    entries, problem = _reread(queue, [])
+    assert [entry.name for entry in entries] == ["a"] and problem is None
+    _queue(tmp_path, [_entry("a", "a/Zerith1-v0_1", 64), _entry("b", "b/Zerith1-v0_1", 64, "huri-next")])
+    kept, problem = _reread(queue, entries)
+    assert kept is entries
+    assert "unknown method 'huri-next'" in problem and "going on with it as last read" in problem
 
 
 def _fake_state(run: Path, steps: int) -> None:

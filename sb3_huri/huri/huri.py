@@ -25,9 +25,10 @@ from torch.nn import functional as F
 from sb3_huri.common.energy import energy_distance
 from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
 from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
+from sb3_huri.common.quantiles import interquartile_range
 from sb3_huri.common.rnd import RNDTrainingCallback
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
-from sb3_huri.huri.methods import method_of_saved
+from sb3_huri.huri.methods import METHODS, method_of_saved
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
 
@@ -93,6 +94,13 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
     :param iqr_risk_levels: risk level below, within and above the band; ``None`` takes
         ``(-1, 0, 1)`` for Wang and ``(1, 1, 0.5)`` for CVaR (paper A.8)
+    :param iqr_band: ``"absolute"``: ``iqr_thresholds`` are fixed, in units of the normalized return (the
+        paper's band as printed); ``"percentile"``: the thresholds are the ``iqr_percentiles`` of the
+        critic's per-state IQR, averaged over recent rollouts, saved with the model and fixed outside
+        training (a state is averse when its critic is more uncertain than usual for this agent); ``None``
+        takes the method's
+    :param iqr_percentiles: ``(p_min, p_max)`` of the percentile band
+    :param iqr_band_smoothing: weight of each new rollout in the percentile band's exponential average
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
     :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
@@ -155,6 +163,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         cvar_alpha: float = 0.5,
         iqr_thresholds: tuple[float, float] = (0.3, 0.7),
         iqr_risk_levels: tuple[float, float, float] | None = None,
+        iqr_band: str | None = None,
+        iqr_percentiles: tuple[float, float] = (30.0, 70.0),
+        iqr_band_smoothing: float = 0.5,
         sr_lambda: float = 1.0,
         quantile_coef: float = 1.0,
         expectation_coef: float = 0.05,
@@ -174,7 +185,13 @@ class HuRiPPO(OnPolicyAlgorithm):
             method, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
             distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
             cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
+            iqr_band=iqr_band, iqr_percentiles=iqr_percentiles, iqr_band_smoothing=iqr_band_smoothing,
         ))  # fmt: skip
+        self.iqr_band_rollouts = 0  # rollouts that moved the percentile band so far
+        if not _init_setup_model and iqr_band is None:
+            # `load` builds the model this way, then restores the saved attributes: a save from before the
+            # band had a reading of its own has no `iqr_band`, and `_setup_model` takes its method's.
+            del self.iqr_band
         use_rnd = self.risk_model.use_rnd
         self.rnd_kwargs = _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
         self.sr_lambda = float(sr_lambda)
@@ -245,6 +262,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         # `load` restores the saved attributes: a model saved before `variant` became `method` has `variant`.
         self.method = method_of_saved(self.__dict__) or self.method
         self.__dict__.pop("variant", None)
+        preset = METHODS.get(self.method)
+        self.__dict__.setdefault("iqr_band", preset.iqr_band if preset is not None else "absolute")
         # The risk settings may be a loaded model's (or given to `load`): its risk model is rebuilt from them.
         self._set_risk_model(RiskModel.from_attributes(self))
         self._setup_lr_schedule()
@@ -428,6 +447,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         with th.no_grad():
             extra = obs_as_tensor(_concatenate_observations(extra_obs), self.device)
             rollout_atoms = th.as_tensor(buffer.atoms, device=self.device).reshape(n_rollout, -1)
+            if self.risk_model.adapts_band:  # the rollout's states move the band before they are read
+                self._move_band(_to_numpy(interquartile_range(rollout_atoms)))
             outputs = th.cat((rollout_atoms, self.policy.predict_values(extra)))
             critic_inputs = None
             if self.policy.rnd is not None:
@@ -461,6 +482,12 @@ class HuRiPPO(OnPolicyAlgorithm):
             for key, value in self.risk_model.rollout_metrics(rollout).items():
                 self.logger.record(key, value)
 
+    def _move_band(self, iqr: np.ndarray) -> None:
+        """Move the percentile band's thresholds with a rollout's per-state IQRs (saved as
+        ``iqr_thresholds``; ``RiskModel.with_band_from``)."""
+        self._set_risk_model(self.risk_model.with_band_from(iqr, first=self.iqr_band_rollouts == 0))
+        self.iqr_band_rollouts += 1
+
     def assess_risk(self, observation: np.ndarray | dict[str, np.ndarray]) -> RiskAssessment:
         """Return distribution, risk parameter and distorted value the critic gives to observations.
 
@@ -476,7 +503,10 @@ class HuRiPPO(OnPolicyAlgorithm):
                 self.policy.predict_values(obs_tensor),
                 self.policy.critic_features(obs_tensor) if rnd is not None else None,
             )
-        fields = (assessed.atoms, assessed.value, assessed.risk, assessed.iqr, assessed.rnd_error)
+        fields = (
+            assessed.atoms, assessed.value, assessed.risk, assessed.iqr, assessed.rnd_error,
+            assessed.risk_iqr, assessed.risk_rnd,
+        )  # fmt: skip
         return RiskAssessment(*(_to_numpy(t) if vectorized else _to_numpy(t)[0] for t in fields))
 
     def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> RiskReading:

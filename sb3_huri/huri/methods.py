@@ -20,12 +20,16 @@ class RiskPreset:
     :param distortion: ``"wang"`` or ``"cvar"`` (unused without a distributional critic)
     :param use_iqr: risk parameter from the IQR band of the predicted atoms (else the fixed one)
     :param use_rnd: add ``tanh(RND error)`` of the critic state to the risk parameter
+    :param iqr_band: how the IQR band's thresholds are read (``sb3_huri.huri.risk.RiskModel``):
+        ``"absolute"``, in units of the normalized return (the paper's ``[0.3, 0.7]`` as printed), or
+        ``"percentile"``, percentiles of the critic's own IQR over recent rollouts (scale-free)
     """
 
     distributional: bool
     distortion: str = "wang"
     use_iqr: bool = False
     use_rnd: bool = False
+    iqr_band: str = "absolute"
 
 
 METHODS: dict[str, RiskPreset] = {
@@ -39,6 +43,11 @@ METHODS: dict[str, RiskPreset] = {
     "huri-no-iqr": RiskPreset(distributional=True, distortion="wang", use_rnd=True),
     # The full method: beta = beta_IQR + tanh(RND error), Wang distortion.
     "huri": RiskPreset(distributional=True, distortion="wang", use_iqr=True, use_rnd=True),
+    # HuRi with a scale-free band: a state is averse when its critic's IQR is above the 70th percentile of the
+    # IQRs of recent rollouts, seeking below the 30th (docs/huri.md, "Our reading").
+    "huri-percentile": RiskPreset(
+        distributional=True, distortion="wang", use_iqr=True, use_rnd=True, iqr_band="percentile"
+    ),
     # Paper A.8: CVaR with alpha = alpha_IQR (1, or 0.5 above t_max) + tanh(RND error), clipped to 1.
     "huri-cvar": RiskPreset(distributional=True, distortion="cvar", use_iqr=True, use_rnd=True),
 }

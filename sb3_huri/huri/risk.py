@@ -21,6 +21,9 @@ from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
 from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
 from sb3_huri.huri.methods import DEFAULT_IQR_RISK_LEVELS, METHODS
 
+IQR_BANDS = ("absolute", "percentile")
+"""Readings of the IQR band's thresholds: in units of the normalized return, or percentiles of the IQR."""
+
 DEFAULT_N_QUANTILES = 64
 """Critic atoms ``N`` when neither the argument nor ``policy_kwargs`` gives them (paper Table 3)."""
 
@@ -49,6 +52,10 @@ class RiskAssessment(NamedTuple):
     """Interquartile range of the atoms."""
     rnd_error: np.ndarray
     """RND novelty of the critic input (zero without RND); ``beta_RND = tanh(rnd_error)``."""
+    risk_iqr: np.ndarray
+    """The IQR band's part of the risk level (the fixed level without ``use_iqr``)."""
+    risk_rnd: np.ndarray
+    """The RND part of the risk level, ``tanh(rnd_error)`` (zero without RND)."""
 
 
 class RiskReading(NamedTuple):
@@ -86,8 +93,15 @@ class RiskModel:
     :param n_quantiles: critic atoms ``N`` (>= 2); 1 for a scalar critic
     :param wang_beta: the fixed Wang ``beta`` (0: neutral, > 0: averse, < 0: seeking)
     :param cvar_alpha: the fixed CVaR level in ``(0, 1]`` (1: neutral)
-    :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
+    :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return; with
+        the percentile band, the thresholds estimated so far (the given ones until the first rollout)
     :param iqr_risk_levels: the risk level below, within and above the band
+    :param iqr_band: ``"absolute"``: ``iqr_thresholds`` are fixed (the paper's band as printed);
+        ``"percentile"``: they are the ``iqr_percentiles`` of the per-state IQR of each rollout, smoothed
+        over rollouts (:meth:`with_band_from`), so the band does not depend on the scale of the return
+    :param iqr_percentiles: ``(p_min, p_max)`` in ``[0, 100]``, the percentiles of the percentile band
+    :param iqr_band_smoothing: weight of a new rollout in the percentile band's exponential average, in
+        ``(0, 1]`` (1: each rollout's own percentiles)
     """
 
     distributional: bool
@@ -99,12 +113,17 @@ class RiskModel:
     cvar_alpha: float
     iqr_thresholds: tuple[float, float]
     iqr_risk_levels: tuple[float, float, float]
+    iqr_band: str = "absolute"
+    iqr_percentiles: tuple[float, float] = (30.0, 70.0)
+    iqr_band_smoothing: float = 0.5
 
     def __post_init__(self) -> None:
         """Check every setting; store the numbers as floats and the sequences as tuples (a loaded model's
         are lists), so that equal settings give equal models."""
         if self.distortion not in DISTORTIONS:
             raise ValueError(f"Unknown distortion {self.distortion!r}: expected one of {list(DISTORTIONS)}")
+        if self.iqr_band not in IQR_BANDS:
+            raise ValueError(f"Unknown iqr_band {self.iqr_band!r}: expected one of {list(IQR_BANDS)}")
         for name in ("distributional", "use_iqr", "use_rnd"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
@@ -118,6 +137,13 @@ class RiskModel:
             ),
             iqr_risk_levels=_numbers(
                 "iqr_risk_levels", self.iqr_risk_levels, 3, lambda v: True, "3 numbers (below, within, above)"
+            ),
+            iqr_percentiles=_numbers(
+                "iqr_percentiles", self.iqr_percentiles, 2, lambda v: 0.0 <= v[0] <= v[1] <= 100.0,
+                "(p_min, p_max) with 0 <= p_min <= p_max <= 100",
+            ),
+            iqr_band_smoothing=_number(
+                "iqr_band_smoothing", self.iqr_band_smoothing, lambda v: 0.0 < v <= 1.0, "in (0, 1]"
             ),
         )  # fmt: skip
         for name, value in normalized.items():
@@ -146,12 +172,15 @@ class RiskModel:
         cvar_alpha: float,
         iqr_thresholds: tuple[float, float],
         iqr_risk_levels: tuple[float, float, float] | None,
+        iqr_band: str | None = None,
+        iqr_percentiles: tuple[float, float] = (30.0, 70.0),
+        iqr_band_smoothing: float = 0.5,
     ) -> "RiskModel":
         """The model HuRiPPO's risk arguments describe (all of them: their defaults are HuRiPPO's): the
         preset of ``method`` (``sb3_huri.huri.methods``) with the given settings overriding its own. ``None``
-        takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``), 64 atoms (``n_quantiles``; a scalar
-        critic has 1) and the distortion's levels (``iqr_risk_levels``: Wang ``(-1, 0, 1)``, CVaR
-        ``(1, 1, 0.5)``, paper A.8).
+        takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``, ``iqr_band``), 64 atoms
+        (``n_quantiles``; a scalar critic has 1) and the distortion's levels (``iqr_risk_levels``: Wang
+        ``(-1, 0, 1)``, CVaR ``(1, 1, 0.5)``, paper A.8).
 
         :raises ValueError: for an unknown method or distortion, risk settings on the scalar critic of
             ``huri-baseline``, or any setting out of its range
@@ -159,12 +188,12 @@ class RiskModel:
         if method not in METHODS:
             raise ValueError(f"Unknown method {method!r}: expected one of {list(METHODS)}")
         preset = METHODS[method]
-        if not preset.distributional and (distortion is not None or use_iqr or use_rnd):
+        if not preset.distributional and (distortion is not None or use_iqr or use_rnd or iqr_band):
             raise ValueError(
-                f"distortion, use_iqr and use_rnd need a quantile critic: method={method!r} has a scalar "
-                f"critic (choose one of {[name for name, p in METHODS.items() if p.distributional]})"
+                f"distortion, use_iqr, use_rnd and iqr_band need a quantile critic: method={method!r} has a "
+                f"scalar critic (choose one of {[name for name, p in METHODS.items() if p.distributional]})"
             )
-        overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd)
+        overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, iqr_band=iqr_band)
         preset = replace(preset, **{key: value for key, value in overrides.items() if value is not None})
         if iqr_risk_levels is None:
             iqr_risk_levels = DEFAULT_IQR_RISK_LEVELS.get(preset.distortion, (0.0, 0.0, 0.0))
@@ -180,6 +209,9 @@ class RiskModel:
             cvar_alpha=cvar_alpha,
             iqr_thresholds=iqr_thresholds,
             iqr_risk_levels=iqr_risk_levels,
+            iqr_band=preset.iqr_band,
+            iqr_percentiles=iqr_percentiles,
+            iqr_band_smoothing=iqr_band_smoothing,
         )
 
     @classmethod
@@ -191,6 +223,31 @@ class RiskModel:
     def settings(self) -> dict[str, Any]:
         """The fields by name: what HuRiPPO keeps as attributes (and saves)."""
         return asdict(self)
+
+    @property
+    def adapts_band(self) -> bool:
+        """Whether each rollout moves the IQR band's thresholds (the percentile band, in use)."""
+        return self.distributional and self.use_iqr and self.iqr_band == "percentile"
+
+    def with_band_from(self, iqr: np.ndarray, first: bool) -> "RiskModel":
+        """The model after a rollout whose states have the per-state IQRs `iqr`: with the percentile band,
+        its thresholds move towards the rollout's ``iqr_percentiles`` by ``iqr_band_smoothing`` (`first`:
+        they become the rollout's own); otherwise unchanged. Only a rollout moves them: evaluation and
+        ``assess_risk`` read the band as it is.
+
+        Percentiles of the IQR are equivariant with the return's scale, so the levels a state gets do not
+        depend on it, unlike the absolute band's.
+        """
+        if not self.adapts_band or len(iqr) == 0:
+            return self
+        observed = np.percentile(np.asarray(iqr, dtype=np.float64), self.iqr_percentiles)
+        if first:
+            thresholds = observed
+        else:
+            weight = self.iqr_band_smoothing
+            thresholds = (1.0 - weight) * np.asarray(self.iqr_thresholds) + weight * observed
+        t_min = max(float(thresholds[0]), 0.0)
+        return replace(self, iqr_thresholds=(t_min, max(float(thresholds[1]), t_min)))
 
     @property
     def fixed_level(self) -> float:
@@ -235,6 +292,8 @@ class RiskModel:
         t_min, t_max = self.iqr_thresholds
         iqr = reading.iqr
         metrics = {
+            "rollout/iqr_t_min": t_min,
+            "rollout/iqr_t_max": t_max,
             "rollout/risk_mean": float(reading.risk.mean()),
             "rollout/risk_iqr_mean": float(reading.risk_iqr.mean()),
             "rollout/iqr_mean": float(iqr.mean()),

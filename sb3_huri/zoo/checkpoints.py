@@ -35,7 +35,7 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, trim_curve
+from sb3_huri.zoo.curve import CURVE_COLUMNS, RISK_COLUMNS, append_row, trim_curve
 from sb3_huri.zoo.runs import DEFAULT_ENV_ID, save_run
 from zerith_gym.infos import ended_falls
 
@@ -52,6 +52,15 @@ def update_figures(model: Any) -> dict[str, float]:
         "ep_return": float(np.mean([e["r"] for e in episodes])) if episodes else np.nan,
         **{key: float(values.get(f"train/{key}", np.nan)) for key in _TRAIN_COLUMNS},
     }
+
+
+def risk_figures(model: Any) -> dict[str, float]:
+    """The rollout's risk levels in use (``RISK_COLUMNS``), as the algorithm logged them at its end; empty
+    for a scalar critic, and NaN for a figure it does not log (the RND part without RND)."""
+    values = model.logger.name_to_value
+    if "rollout/risk_mean" not in values:
+        return {}
+    return {column: float(values.get(key, np.nan)) for column, key in RISK_COLUMNS.items()}
 
 
 class UpdateRecorder(BaseCallback):
@@ -180,6 +189,7 @@ class CurveWriter(BaseCallback):
                 "scale": self.curriculum.scale if self.curriculum is not None else 1.0,
                 **figures,
                 "terrain_level": _mean_level(self.training_env),
+                **risk_figures(self.model),
             },
         )
         self._episodes = self._falls = 0

@@ -5,7 +5,9 @@ Every training of this package writes the same curve (``sb3_huri.experiments.tra
 training wall time, the recent episodes' mean length and return (what SB3 logs as ``ep_len_mean`` and
 ``ep_rew_mean``), the share of the rollout's ended episodes that fell, the curriculum's scale, and the
 previous update's approximate KL, clip fraction, critic explained variance, action noise and learning rates,
-and on a tile terrain the robots' mean terrain level (the paper's Figures 10 and 11).
+and on a tile terrain the robots' mean terrain level (the paper's Figures 10 and 11). With a quantile
+critic, also the rollout's risk levels in use: the shares of its states below, within and above the IQR
+band, the band's thresholds, the mean risk level (Wang's ``beta``) and its RND part.
 """
 
 from __future__ import annotations
@@ -22,8 +24,19 @@ CURVE_COLUMNS = (
     "timesteps", "wall_s", "ep_len", "ep_return", "fall_rate", "scale",
     "approx_kl", "clip_fraction", "explained_variance", "std", "learning_rate", "critic_learning_rate",
     "terrain_level",
+    "iqr_below", "iqr_within", "iqr_above", "iqr_t_min", "iqr_t_max", "risk_mean", "risk_rnd_mean",
 )  # fmt: skip
-OPTIONAL_COLUMNS = ("terrain_level",)
+RISK_COLUMNS = {
+    "iqr_below": "rollout/iqr_below_share",
+    "iqr_within": "rollout/iqr_within_share",
+    "iqr_above": "rollout/iqr_above_share",
+    "iqr_t_min": "rollout/iqr_t_min",
+    "iqr_t_max": "rollout/iqr_t_max",
+    "risk_mean": "rollout/risk_mean",
+    "risk_rnd_mean": "rollout/risk_rnd_mean",
+}
+"""The risk columns and the logger keys of the rollout they come from (``RiskModel.rollout_metrics``)."""
+OPTIONAL_COLUMNS = ("terrain_level", *RISK_COLUMNS)
 """Columns later than the first curves: NaN in the rows written before them."""
 
 

@@ -143,10 +143,15 @@ def run_campaign(
             child.send_signal(signal.SIGTERM)
 
     previous = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGINT)}
+    entries = load_queue(queue)  # a bad queue file stops the campaign before it starts anything
+    said = None
     try:
         with campaign_lock(queue):
             while True:
-                entries = load_queue(queue)
+                entries, problem = _reread(queue, entries)
+                if problem is not None and problem != said:
+                    echo(f"{time.strftime('%H:%M:%S')} {problem}")
+                said = problem
                 out_of_time = deadline is not None and time.time() >= deadline
                 if not stopping and not out_of_time:
                     busy = {entry.run for entry, _ in running.values()}
@@ -171,7 +176,17 @@ def run_campaign(
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    return [entry for entry in load_queue(queue) if entry.state() != "done"]
+    return [entry for entry in _reread(queue, entries)[0] if entry.state() != "done"]
+
+
+def _reread(queue: Path, entries: list[CampaignEntry]) -> tuple[list[CampaignEntry], str | None]:
+    """The queue file's entries as it is now (an entry added while the campaign runs is taken up), or, while
+    it does not read (an edit under way, an entry this code cannot take), the entries last read and why: the
+    entries running are never left without their campaign."""
+    try:
+        return load_queue(queue), None
+    except ExperimentError as error:
+        return entries, f"the queue file does not read now ({error}); going on with it as last read"
 
 
 def _report_end(

@@ -44,7 +44,7 @@ RISK_LABELS = {PLANE_CASE: "plane", PUSH_CASE: "push", "uneven": "uneven"}
 FIGURE_DPI = 90
 
 
-METHOD_COLORS = {"huri": "tab:orange", BASELINE: "tab:blue"}
+METHOD_COLORS = {"huri": "tab:orange", "huri-percentile": "tab:green", BASELINE: "tab:blue"}
 
 
 PROTOCOL_STYLES = {"robust": "-", "robust-256": "-.", "paper": "--", "terrain": ":"}
