@@ -243,6 +243,19 @@ def test_figures_are_drawn_small_and_linked(campaign) -> None:
     assert _row(page, "huri-s0 @ 0.0M", "## 6.")[-1] == "holds (uneven > push > plane)"
 
 
+def test_a_page_rendered_again_from_unchanged_data_leaves_every_figure_as_it_was(campaign) -> None:
+    """The figures carry no version or date and are written only when their bytes change, so a render of
+    unchanged data changes no file in git."""
+    root, _ = campaign
+    figures = sorted((root / "docs" / "results").glob("*.png"))
+    before = {path: (path.read_bytes(), path.stat().st_mtime_ns) for path in figures}
+    write_results(root / "campaign.yml", root / "docs" / "results.md")
+    assert sorted((root / "docs" / "results").glob("*.png")) == figures
+    for path, (content, written) in before.items():
+        assert path.read_bytes() == content and path.stat().st_mtime_ns == written, path.name
+        assert b"matplotlib" not in content, path.name
+
+
 def test_a_figure_without_data_is_removed(tmp_path: Path) -> None:
     (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
     entry = {"name": "a", "protocol": "robust", "method": "huri", "seed": 0, "run": "r", "conf": "preset.yml"}

@@ -16,7 +16,7 @@ import numpy as np
 
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.evaluations import BASELINE, FIGURE_DPI, method_label, runs_of
-from sb3_huri.experiments.campaign.results.markdown import figure_lines, link
+from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, save_figure
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.huri import METHODS
 from sb3_huri.zoo.curve import read_curve
@@ -192,7 +192,7 @@ def _plot(path: Path, runs: dict[Path, list[CampaignEntry]]) -> None:
         axes.set_ylabel("share / beta")
     grid[-1].set_xlabel("environment steps (millions)")
     grid[0].legend(fontsize=7, ncol=4, loc="lower right")
-    figure.savefig(path, dpi=FIGURE_DPI, metadata={"Software": None})
+    save_figure(figure, path, FIGURE_DPI)
 
 
 def _smooth(values: Sequence[float], window: int = 9) -> np.ndarray:

@@ -31,6 +31,7 @@ from sb3_huri.experiments.campaign.results.evaluations import (
 from sb3_huri.experiments.campaign.results.markdown import (
     figure_lines,
     link,
+    save_figure,
     share_cell,
 )
 from sb3_huri.experiments.evaluation import (
@@ -123,7 +124,7 @@ def _plot_robustness(
     axes.grid(alpha=0.3)
     axes.set_title("Robustness during training (stars: final evaluations)")
     figure.legend(fontsize=7, loc="outside lower center", ncol=2)
-    figure.savefig(path, dpi=FIGURE_DPI)
+    save_figure(figure, path, FIGURE_DPI)
 
 
 def returns_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> list[str]:
@@ -207,7 +208,7 @@ def _plot_returns(path: Path, groups: dict[tuple[str, str], list[tuple[np.ndarra
         axes.grid(alpha=0.3)
         axes.legend(fontsize=8)
     panels[0].set_ylabel("training return (moving average)")
-    figure.savefig(path, dpi=FIGURE_DPI)
+    save_figure(figure, path, FIGURE_DPI)
 
 
 def tracking_section(evaluations: Sequence[Evaluated], figures: Path, out: Path) -> list[str]:
@@ -259,7 +260,7 @@ def _plot_tracking(path: Path, shown: Sequence[Evaluated]) -> None:
     panels[1].set_xticks(x, TRACKING_CASES)
     panels[0].set_title("Velocity tracking error (bar labels: survival)")
     panels[0].legend(fontsize=7)
-    figure.savefig(path, dpi=FIGURE_DPI)
+    save_figure(figure, path, FIGURE_DPI)
 
 
 def _risk_order(evaluated: Evaluated) -> str:
@@ -346,4 +347,4 @@ def _plot_risk(path: Path, traced: Sequence[Evaluated]) -> None:
     for row, (_, label) in enumerate(RISK_ROWS):
         panels[row][0].set_ylabel(label)
     panels[0][0].legend(fontsize=7)
-    figure.savefig(path, dpi=FIGURE_DPI)
+    save_figure(figure, path, FIGURE_DPI)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 from sb3_huri.experiments.statistics import wilson_interval
 
@@ -17,6 +19,17 @@ def millions(steps: int) -> str:
 def link(path: Path, page: Path) -> str:
     """``path`` relative to the page's folder (a link that works from the page)."""
     return os.path.relpath(path, page.parent)
+
+
+def save_figure(figure: Any, path: Path, dpi: int) -> None:
+    """Write a matplotlib figure as a PNG without the matplotlib version in it, and only where its bytes
+    differ from the file there: a figure of unchanged data stays the same file (no change for git)."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    content = buffer.getvalue()
+    if path.is_file() and path.read_bytes() == content:
+        return
+    path.write_bytes(content)
 
 
 def figure_lines(path: Path, page: Path, drawn: bool = True) -> list[str]:

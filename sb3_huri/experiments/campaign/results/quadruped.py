@@ -23,6 +23,7 @@ from sb3_huri.experiments.campaign.results.markdown import (
     figure_lines,
     link,
     millions,
+    save_figure,
     verdict,
 )
 from sb3_huri.experiments.campaign.results.tables import case_difference, method_pair_lines, survival_cell
@@ -109,7 +110,7 @@ def _plot_quadruped(path: Path, curves: dict[Path, CampaignEntry]) -> None:
     returns.set(xlabel="samples (M)", ylabel="training return (A)")
     levels.set(xlabel="samples (M)", ylabel="mean terrain level (B)")
     returns.legend(fontsize="small")
-    figure.savefig(path, dpi=110)
+    save_figure(figure, path, 110)
 
 
 def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:

@@ -25,7 +25,7 @@ from sb3_huri.experiments.campaign.results.evaluations import (
     runs_of,
     smoothed_curve,
 )
-from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions
+from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions, save_figure
 from sb3_huri.experiments.campaign.results.tables import pair_table
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.experiments.statistics import mean_ci
@@ -234,4 +234,4 @@ def _plot_shapes(path: Path, pairs: Sequence[tuple[CampaignEntry, CampaignEntry]
     returns.legend(fontsize="small")
     for axes in (returns, falls):
         axes.grid(alpha=0.3)
-    figure.savefig(path, dpi=FIGURE_DPI)
+    save_figure(figure, path, FIGURE_DPI)
