@@ -188,9 +188,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             iqr_band=iqr_band, iqr_percentiles=iqr_percentiles, iqr_band_smoothing=iqr_band_smoothing,
         ))  # fmt: skip
         self.iqr_band_rollouts = 0  # rollouts that moved the percentile band so far
-        if not _init_setup_model and iqr_band is None:
-            # `load` builds the model this way, then restores the saved attributes: a save from before the
-            # band had a reading of its own has no `iqr_band`, and `_setup_model` takes its method's.
+        if not _init_setup_model and iqr_band is None:  # as `load` builds it: see `_setup_model`
             del self.iqr_band
         use_rnd = self.risk_model.use_rnd
         self.rnd_kwargs = _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
@@ -208,25 +206,12 @@ class HuRiPPO(OnPolicyAlgorithm):
             policy = self._get_policy_from_name(policy)  # type: ignore[assignment]
 
         super().__init__(
-            policy,
-            env,
-            learning_rate=learning_rate,
-            n_steps=n_steps,
-            gamma=gamma,
-            gae_lambda=gae_lambda,
-            ent_coef=ent_coef,
-            vf_coef=vf_coef,
-            max_grad_norm=max_grad_norm,
-            use_sde=use_sde,
-            sde_sample_freq=sde_sample_freq,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            policy_kwargs=policy_kwargs,
-            verbose=verbose,
-            device=device,
-            seed=seed,
-            _init_setup_model=False,
-        )
+            policy, env, learning_rate=learning_rate, n_steps=n_steps, gamma=gamma, gae_lambda=gae_lambda,
+            ent_coef=ent_coef, vf_coef=vf_coef, max_grad_norm=max_grad_norm, use_sde=use_sde,
+            sde_sample_freq=sde_sample_freq, stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log, policy_kwargs=policy_kwargs, verbose=verbose, device=device,
+            seed=seed, _init_setup_model=False,
+        )  # fmt: skip
         self.batch_size = self._checked_batch_size(batch_size)
         self.n_epochs, self.clip_range = n_epochs, clip_range
         self.normalize_advantage, self.target_kl = normalize_advantage, target_kl
@@ -262,6 +247,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         # `load` restores the saved attributes: a model saved before `variant` became `method` has `variant`.
         self.method = method_of_saved(self.__dict__) or self.method
         self.__dict__.pop("variant", None)
+        # `load` builds the model without `iqr_band`, then restores the saved attributes: a save from before
+        # the band had a reading of its own has none, and takes its method's (the absolute band).
         preset = METHODS.get(self.method)
         self.__dict__.setdefault("iqr_band", preset.iqr_band if preset is not None else "absolute")
         # The risk settings may be a loaded model's (or given to `load`): its risk model is rebuilt from them.
