@@ -16,6 +16,9 @@ agent meets the same conditions. Metrics:
 With ``risk=True`` the critic's view of every state is recorded too (``HuRiPPO.assess_risk``: the sorted
 return quantiles, the risk parameter beta and the interquartile range): ``beta`` and ``iqr`` averaged over
 every robot-step, and robot 0's trace, step by step, with the external force it felt (the paper's Fig. 5).
+With ``risk_states=True`` every robot-step's assessment is kept too (``RiskStates``: the risk level, its IQR
+and RND parts, the IQR and the RND novelty), for statistics over all the states an agent visits
+(``sb3_huri.experiments.analyses.risk_levels``).
 
 ``PROTOCOL`` is the paper's evaluation (``DESIGN`` section 6): the six disturbance scenarios of its Table 1
 (survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), the
@@ -143,6 +146,68 @@ class RiskTrace:
         return {"beta": self.beta, "iqr": self.iqr, "atoms": self.atoms, "force": self.force}
 
 
+RISK_STATE_FIELDS = ("risk", "risk_iqr", "risk_rnd", "iqr", "rnd_error")
+"""The fields of ``HuRiPPO.assess_risk``'s reading that ``RiskStates`` keeps for every robot-step."""
+
+
+@dataclass
+class RiskStates:
+    """The critic's view of every state a rollout visited: one entry per robot-step, robot by robot up to its
+    episode's end (a fall or the time limit), flattened to arrays of shape (robot-steps,) in the critic's
+    precision (float32), the precision ``RiskModel.assess`` compares the IQR with its band in."""
+
+    risk: np.ndarray
+    """Risk level (Wang's beta; CVaR's alpha): ``risk_iqr + risk_rnd`` (CVaR: clipped to 1)."""
+    risk_iqr: np.ndarray
+    """The IQR band's part of the risk level (the fixed level without ``use_iqr``)."""
+    risk_rnd: np.ndarray
+    """``tanh(rnd_error)`` (0 without RND)."""
+    iqr: np.ndarray
+    """Interquartile range of the critic's return quantiles."""
+    rnd_error: np.ndarray
+    """RND novelty of the critic input (0 without RND)."""
+
+
+class _RiskRecorder:
+    """What ``_rollout`` gathers of the critic's view, step by step: robot 0's trace, the sums over every
+    robot-step and, with ``states``, each robot-step's assessment (``RiskStates``)."""
+
+    def __init__(self, states: bool) -> None:
+        self.trace: dict[str, list[Any]] = {"beta": [], "iqr": [], "atoms": [], "force": []}
+        self.sums = np.zeros(3)  # beta, iqr, robot-steps
+        self.states: dict[str, list[np.ndarray]] | None = (
+            {name: [] for name in RISK_STATE_FIELDS} if states else None
+        )
+
+    def record(self, assessed: Any, alive: np.ndarray, force: float) -> None:
+        """One step: the model's reading ``assessed`` of every robot's state, the robots still in their
+        episode and the external force robot 0 felt (N)."""
+        self.sums += (assessed.risk[alive].sum(), assessed.iqr[alive].sum(), alive.sum())
+        first = alive[0]
+        self.trace["beta"].append(assessed.risk[0] if first else np.nan)
+        self.trace["iqr"].append(assessed.iqr[0] if first else np.nan)
+        self.trace["atoms"].append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
+        self.trace["force"].append(force if first else np.nan)
+        if self.states is not None:
+            for name, values in self.states.items():
+                values.append(np.asarray(getattr(assessed, name))[alive])
+
+    def results(self) -> dict[str, Any]:
+        """``beta`` and ``iqr`` (means over every robot-step), ``trace`` and, if kept, ``states``."""
+        beta_mean, iqr_mean = (self.sums[:2] / self.sums[2]).tolist()
+        arrays = (np.array(self.trace[key], dtype=float) for key in ("beta", "iqr", "atoms", "force"))
+        result: dict[str, Any] = {
+            "beta": beta_mean,
+            "iqr": iqr_mean,
+            "trace": RiskTrace(*arrays, beta_mean, iqr_mean),
+        }
+        if self.states is not None:
+            result["states"] = RiskStates(
+                **{name: np.concatenate(values) for name, values in self.states.items()}
+            )
+        return result
+
+
 @contextlib.contextmanager
 def random_states_kept() -> Iterator[None]:
     """Restore the global random states of Python, NumPy and torch (CPU and CUDA) on leaving: an evaluation
@@ -172,6 +237,7 @@ def evaluate(
     episode_steps: int | None = None,
     workers: int | None = None,
     risk: bool = False,
+    risk_states: bool = False,
     per_robot: bool = False,
     backend_options: Mapping[str, Any] | None = None,
     robot: str = "zerith1",
@@ -181,7 +247,8 @@ def evaluate(
     ``normalizer``: the run's ``VecNormalize`` (observations are normalized as in training) or None.
     ``episode_steps``: the time limit (default: the env's, 20 s); ``workers``: processes stepping the
     robots (``zerith_gym.make_vec_env``; default one per core). With ``risk`` the result also holds
-    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``. With ``per_robot``
+    ``beta`` and ``iqr`` (means over every robot-step) and ``trace``, a ``RiskTrace``; ``risk_states``
+    implies ``risk`` and adds ``states``, a ``RiskStates`` of every robot-step. With ``per_robot``
     it holds each robot's ``fall_step`` too: (episodes,) the control step at which it fell, NaN where none
     fell; and ``domain``: the ``DomainParams`` it was drawn (physical units), to tell which conditions fell.
     ``backend_options``: more ``make_vec_env`` arguments, e.g. ``{"backend": "mjx", "solver_iterations": 4}``.
@@ -194,7 +261,8 @@ def evaluate(
         options["episode_steps"] = episode_steps
     env = zerith_gym.make_vec_env(episodes, seed=seed, workers=workers, **options, **(backend_options or {}))
     try:
-        result = _rollout(model, normalizer, env, episodes, risk)
+        recorder = _RiskRecorder(risk_states) if risk or risk_states else None
+        result = _rollout(model, normalizer, env, episodes, recorder)
     finally:
         env.close()
     if not per_robot:
@@ -202,7 +270,9 @@ def evaluate(
     return result
 
 
-def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: bool) -> dict[str, Any]:
+def _rollout(
+    model: Any, normalizer: Any | None, env: Any, episodes: int, recorder: _RiskRecorder | None
+) -> dict[str, Any]:
     task = env.options.task  # the robot's critic layout and scales
     in_units, blocks = task.critic_in_units, layout_slices(task.critic_layout)
     obs = env.reset()
@@ -215,19 +285,11 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
     lin_err, yaw_err = np.full_like(vx, np.nan), np.full_like(vx, np.nan)
     feet = blocks["foot_contact"].stop - blocks["foot_contact"].start
     contact = np.zeros((horizon, episodes, feet), dtype=bool)
-    betas, iqrs, atoms, forces = [], [], [], []
-    risk_sums = np.zeros(3)  # beta, iqr, robot-steps
     for t in range(horizon):
         policy_obs = normalizer.normalize_obs(obs) if normalizer is not None else obs
-        if risk:
-            assessed = model.assess_risk(policy_obs)
-            risk_sums += (assessed.risk[alive].sum(), assessed.iqr[alive].sum(), alive.sum())
-            first = alive[0]
-            betas.append(assessed.risk[0] if first else np.nan)
-            iqrs.append(assessed.iqr[0] if first else np.nan)
-            atoms.append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
+        if recorder is not None:
             force = np.linalg.norm(in_units(obs["critic"][0])[blocks["external_force"]])
-            forces.append(force if first else np.nan)
+            recorder.record(model.assess_risk(policy_obs), alive, force)
         action, _ = model.predict(policy_obs, deterministic=True)
         obs, _, dones, infos = env.step(action)
         critic = np.stack(
@@ -260,17 +322,8 @@ def _rollout(model: Any, normalizer: Any | None, env: Any, episodes: int, risk: 
         "fall_step": fall_step,
         "domain": DomainParams.from_vector(domain),
     }
-    if risk:
-        beta_mean, iqr_mean = (risk_sums[:2] / risk_sums[2]).tolist()
-        result["beta"], result["iqr"] = beta_mean, iqr_mean
-        result["trace"] = RiskTrace(
-            np.array(betas, dtype=float),
-            np.array(iqrs, dtype=float),
-            np.array(atoms, dtype=float),
-            np.array(forces, dtype=float),
-            beta_mean,
-            iqr_mean,
-        )
+    if recorder is not None:
+        result.update(recorder.results())
     return result
 
 

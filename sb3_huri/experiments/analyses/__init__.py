@@ -9,5 +9,9 @@
 - ``force_exposure``: robot-steps and falls under each force of a training scenario (``force_exposure.py``);
 - ``impulses``: survival of single pushes, and Table 1's pushes counted one by one (``impulse_envelope.py``);
 - ``expectation_fit``: the expectation loss's two readings fitting a known distribution
-  (``bench_expectation_loss.py``).
+  (``bench_expectation_loss.py``);
+- ``risk_levels``: the risk levels a HuRi agent's critic sets on the states it visits, per scenario: shares
+  of states below, within and above its IQR band, beta and its RND part (``risk_levels.py``);
+- ``force_magnitude``: survival over the force's magnitude in the Table-1 and Fig. 4 cases, under both
+  readings of the forces on hands and feet and both hold times of a push (``force_magnitude.py``).
 """

@@ -89,9 +89,10 @@ class CampaignEntry:
         return int(json.loads(path.read_text())["timesteps"]) if path.is_file() else 0
 
     def evaluation(self) -> Path | None:
-        """The entry's final evaluation file, if it was written."""
+        """The entry's final evaluation file, ``<steps>.json``, if it was written (the other analyses' files
+        beside it, ``<steps>-<analysis>.json``, are not evaluations)."""
         for path in sorted((self.run / EVALUATIONS).glob("*.json")):
-            if json.loads(path.read_text()).get("entry") == self.name:
+            if path.stem.isdigit() and json.loads(path.read_text()).get("entry") == self.name:
                 return path
         return None
 
