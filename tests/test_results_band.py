@@ -48,7 +48,7 @@ def test_the_band_section_holds_the_percentile_run_against_literal_huri_and_ppo_
     _run(tmp_path / "pct/Zerith1-v0_1", 2_000_000, 100.0, {**band, "risk_rnd_mean": 0.15}, {1_000_448: 0.5})
     literal = dict(band, iqr_below=0.9, iqr_within=0.1, iqr_above=0.0, iqr_t_min=0.3, iqr_t_max=0.7)
     _run(tmp_path / "huri/Zerith1-v0_1", 3_000_000, 200.0, literal, {999_936: 0.25, 2_000_000: 0.75})
-    _run(tmp_path / "ppo/Zerith1-v0_1", 3_000_000, 300.0, None, {1_000_000: 0.125})
+    _run(tmp_path / "ppo/Zerith1-v0_1", 3_000_000, 300.0, None, {1_700_000: 0.125})
     _run(tmp_path / "huri/Zerith1-v0_2", 3_000_000, 0.0, None, {1_000_000: 0.0})
     entries = load_queue(_queue(tmp_path))
     page = tmp_path / "docs" / "results.md"
@@ -73,7 +73,7 @@ def test_the_band_section_holds_the_percentile_run_against_literal_huri_and_ppo_
     expected = [np.mean([start + i for i in range(10)]) for start in (100.0, 200.0, 300.0)]
     row = next(line for line in lines if line.startswith("| 1M |")).split(" | ")
     assert row[1] == " / ".join(f"{value:.0f}" for value in expected)
-    assert row[4] == "0.500 / 0.250 / 0.125"  # the robustness rows nearest 1M
+    assert row[4] == "0.500 / 0.250 / 0.125 (1.7M)"  # the rows nearest 1M, with their step if not at it
     assert row[5].rstrip(" |") == "0.30 / 0.45 / 0.25"
     assert "| 2M |" not in text  # compared where the percentile run has a robustness row
     assert "`../huri/Zerith1-v0_2`" not in text

@@ -16,7 +16,7 @@ import numpy as np
 
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.evaluations import BASELINE, FIGURE_DPI, method_label, runs_of
-from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, save_figure
+from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions, save_figure
 from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.huri import METHODS
 from sb3_huri.zoo.curve import read_curve
@@ -109,7 +109,7 @@ def _comparisons(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
                     for column, fmt in (("ep_return", ".0f"), ("ep_len", ".0f"), ("fall_rate", ".2f"))
                 )
                 + " | "
-                + " / ".join(_number(float(row["table1_mean"]) if row else math.nan, ".3f") for row in table1)
+                + " / ".join(_table1_cell(row, step) for row in table1)
                 + f" | {_shares(figures[0])} |"
             )
         lines.append("")
@@ -136,9 +136,18 @@ def _marks(run: Path, curve: list[dict[str, float]]) -> list[int]:
 
 
 def _row_near(rows: dict[int, dict[str, str]], step: int) -> dict[str, str] | None:
-    """The robustness row within half a million steps of `step`, if any."""
-    near = [s for s in rows if abs(s - step) <= WINDOW_STEPS // 2]
+    """The robustness row nearest `step` within half the rows' period (5M), if any."""
+    near = [s for s in rows if abs(s - step) < 2_500_000]
     return rows[min(near, key=lambda s: abs(s - step))] if near else None
+
+
+def _table1_cell(row: dict[str, str] | None, step: int) -> str:
+    """A row's Table-1 mean, with the row's own step where it is more than half a million from `step`."""
+    if row is None:
+        return "-"
+    cell = f"{float(row['table1_mean']):.3f}"
+    own = int(row["timesteps"])
+    return cell if abs(own - step) <= WINDOW_STEPS // 2 else f"{cell} ({millions(own)})"
 
 
 def _window(curve: list[dict[str, float]], step: float) -> dict[str, float]:
