@@ -10,7 +10,7 @@ import numpy as np
 import yaml
 
 from sb3_huri.experiments.campaign.queue import load_queue
-from sb3_huri.experiments.campaign.results.band import band_section
+from sb3_huri.experiments.campaign.results.band import band_section, early_signal_lines
 from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
 
 STEP = 100_000
@@ -53,7 +53,7 @@ def test_the_band_section_holds_the_percentile_run_against_literal_huri_and_ppo_
     entries = load_queue(_queue(tmp_path))
     page = tmp_path / "docs" / "results.md"
     (tmp_path / "docs" / "results").mkdir(parents=True)
-    lines = band_section(entries, tmp_path / "docs" / "results", page)
+    lines = band_section(entries, tmp_path / "docs" / "results", page) + early_signal_lines(entries, page)
     text = "\n".join(lines)
 
     # Every run that logged its risk levels gets a row (the PPO run and the other seed logged none).

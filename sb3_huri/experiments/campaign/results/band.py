@@ -1,5 +1,6 @@
-"""The results page's section on the IQR band in training: which risk levels each run's rollouts used, and
-the runs with the percentile band against the literal HuRi and PPO of their protocol and seed at equal steps.
+"""The IQR band in training, for the results page: which risk levels each run's rollouts used (its own
+section), and the runs with the percentile band against the literal HuRi and PPO of their protocol and seed
+at equal steps (the early signal, in section 3).
 
 The band's shares, thresholds and mean risk level come from ``curve.csv`` (a row per rollout, written since
 the curve kept them: earlier rows are blank there); the robustness rows from ``robustness.csv``.
@@ -64,14 +65,14 @@ def band_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> 
             f"| {label} | {int(rows[-1]['timesteps']):,} | {_shares(last)} | {_shares(whole)} | {band} "
             f"| {beta} |"
         )
-    lines += ["", *_comparisons(entries, out)]
+    lines.append("")
     _plot(path, runs)
     return [*lines, *figure_lines(path, out)]
 
 
-def _comparisons(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
+def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
     """Each percentile-band run beside the literal HuRi and PPO runs of its protocol, seed and preset at
-    equal steps: the early signal while it trains."""
+    equal steps: the early signal while it trains (in section 3, beside the robustness curves)."""
     lines = []
     for run, run_entries in runs_of(entries).items():
         first = run_entries[0]

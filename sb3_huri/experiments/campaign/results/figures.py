@@ -15,6 +15,7 @@ from sb3_huri.experiments.campaign.final_evaluation import (
     trace_path,
 )
 from sb3_huri.experiments.campaign.queue import PROTOCOLS, CampaignEntry
+from sb3_huri.experiments.campaign.results.band import early_signal_lines
 from sb3_huri.experiments.campaign.results.evaluations import (
     FIGURE_DPI,
     METHOD_COLORS,
@@ -86,7 +87,7 @@ def robustness_section(
     if not curves:
         return [*lines[:4], "No run has a robustness curve yet.", "", *figure_lines(path, out, drawn=False)]
     _plot_robustness(path, runs_of(entries), curves, evaluations)
-    return [*lines, "", *figure_lines(path, out)]
+    return [*lines, "", *figure_lines(path, out), *early_signal_lines(entries, out)]
 
 
 def _plot_robustness(
