@@ -106,8 +106,9 @@ def test_the_curve_skips_a_torn_row_and_is_cut_back_whole(tmp_path):
 
 
 def test_a_curve_of_fewer_columns_takes_todays_header_and_keeps_its_rows(tmp_path):
-    """A run begun before `terrain_level` existed: its rows stay, NaN in the new column, new rows carry it."""
-    old_columns = CURVE_COLUMNS[:-1]
+    """A run begun before `terrain_level` and the risk columns existed: its rows stay, NaN in the new columns,
+    new rows carry them."""
+    old_columns = CURVE_COLUMNS[: CURVE_COLUMNS.index("terrain_level")]
     lines = [",".join(old_columns), ",".join(["64", "6.4", "1000", "2.5", *["0.1"] * (len(old_columns) - 4)])]
     (tmp_path / "curve.csv").write_text("\n".join(lines) + "\n")
     append_row(tmp_path, {**dict.fromkeys(CURVE_COLUMNS, 0.5), "timesteps": 128, "terrain_level": 3.25})
@@ -116,6 +117,7 @@ def test_a_curve_of_fewer_columns_takes_todays_header_and_keeps_its_rows(tmp_pat
     rows = read_curve(tmp_path)
     assert [r["timesteps"] for r in rows] == [64, 128] and rows[0]["ep_return"] == 2.5
     assert math.isnan(rows[0]["terrain_level"]) and rows[1]["terrain_level"] == 3.25
+    assert math.isnan(rows[0]["iqr_below"]) and rows[1]["iqr_below"] == 0.5
 
 
 def test_random_states_come_back_from_a_checkpoint(tmp_path):
