@@ -1,9 +1,10 @@
 """External force schedules applied through `xfrc_applied`, and periodic velocity pushes.
 
 A schedule draws a horizontal force (uniform magnitude, uniform direction) at the start of each period
-and holds it for `duration_steps` control steps; in between, no force acts. `duration == period` is a
-continuous disturbance, a short duration an impulse. The same force vector acts on each body of the target
-group ("centroid": the root body; "hands" and "feet": each of the two bodies), at the body's centre of mass.
+and holds it for `duration_steps` control steps (its hold time); in between, no force acts. `duration ==
+period` is a continuous disturbance, a short duration an impulse. The same force vector acts on each body of
+the target group ("centroid": the root body; "hands" and "feet": each of the two bodies), at the body's centre
+of mass; a schedule with `per_body` draws each body's magnitude and direction on its own instead.
 A `ForceCycle` takes turns between schedules (targets and kinds of force) within an episode, starting
 each episode at one of its `start_phases`.
 """
@@ -45,6 +46,10 @@ class ForceSchedule:
     start_step: int = 0
     direction: float | None = None
     """Direction (rad, world frame, from +x towards +y) of every force drawn; None: uniform."""
+    per_body: bool = False
+    """False: one force vector is drawn and acts on every body of the target group (both hands, both feet);
+    True: each body of the group draws its own magnitude and direction, at the same steps and from the same
+    range. The same for the centroid, a group of one body."""
 
     def __post_init__(self) -> None:
         if self.target not in FORCE_TARGETS:
@@ -79,6 +84,7 @@ class ForceSchedule:
             draw, on, np.tile(np.asarray(self.magnitude, dtype=float), (num_steps, 1)),
             np.full(num_steps, TARGET_INDEX[self.target]),
             np.full(num_steps, np.nan if self.direction is None else float(self.direction)),
+            np.full(num_steps, bool(self.per_body)),
         )  # fmt: skip
 
 
@@ -150,6 +156,7 @@ class ForceTable(NamedTuple):
     magnitude: np.ndarray  # (steps, 2) N: the range a new force's magnitude is drawn from
     target: np.ndarray  # (steps,) int: the target it acts on (`TARGET_INDEX`)
     direction: np.ndarray  # (steps,) rad: a new force's direction, NaN for a uniform one
+    per_body: np.ndarray  # (steps,) bool: each body of the target draws its own (`ForceSchedule.per_body`)
 
 
 ForceProgram = ForceSchedule | ForceCycle

@@ -118,6 +118,7 @@ class ScenarioArrays(NamedTuple):
     force_magnitude: np.ndarray  # (2 episode_steps, 2) N, the range of a force drawn at each table step
     force_target: np.ndarray  # (2 episode_steps,) int, the target (`disturbances.TARGET_INDEX`)
     force_direction: np.ndarray  # (2 episode_steps,) rad, a drawn force's direction (NaN: uniform)
+    force_per_body: np.ndarray  # (2 episode_steps,) bool, each body of the target draws its own force
     force_offsets: np.ndarray  # (k,) int, the table steps an episode may start at (one drawn per episode)
     push_velocity: np.ndarray  # (2,) m/s
     command_low: np.ndarray  # (3,)
@@ -168,6 +169,7 @@ def scenario_arrays(
         force_magnitude=force.magnitude,
         force_target=force.target,
         force_direction=force.direction,
+        force_per_body=force.per_body,
         force_offsets=np.array(offsets, dtype=int),
         push_velocity=np.array(ranges.push_velocity, dtype=float),
         command_low=low,
@@ -517,6 +519,11 @@ class ZerithTask:
 
     Each robot has its own numpy random generator, drawing a fixed amount per reset and per step, so n
     robots stepped together follow exactly the trajectories of n single envs seeded alike.
+
+    A force schedule that draws per body (`ForceSchedule.per_body`) gives the target's first body the force
+    drawn as above (the one the critic observes and `info["external_force"]` reports) and each other body
+    its own, drawn from a generator of the robot's episode, seeded by the step's uniforms at its first
+    per-body draw: the robot's own stream, and so everything else, is what it is without per-body draws.
     """
 
     def __init__(
@@ -542,6 +549,12 @@ class ZerithTask:
         self.state = TaskState.zeros(n, self.task)
         """The robots' task state (numpy arrays, updated in place or replaced by the step)."""
         self._uniforms = np.zeros((n, self.draws.step))
+        extra_bodies = max(len(bodies) for bodies in self.task.robot.force_bodies.values()) - 1
+        self._own_forces = np.zeros((n, max(extra_bodies, 0), 3))  # the per-body draws of the later bodies
+        self._body_rngs: list[np.random.Generator | None] = [None] * n
+        self.other_forces: np.ndarray | None = None
+        """(n, bodies - 1, 3) the force on each body of the target after the first during this step, or None
+        where every body gets the first body's (the scenario never draws per body)."""
 
     def set_scenario(self, scenario: Scenario, command: tuple[float, float, float] | None = None) -> None:
         """Follow `scenario` (and a fixed `command`, if given) from now on.
@@ -553,6 +566,7 @@ class ZerithTask:
         self.scenario = scenario
         self.arrays = scenario_arrays(scenario, command, self.episode_steps, self.task.noise_scale)
         self._noisy = bool(self.arrays.noise_scale.any())
+        self._per_body = bool(self.arrays.force_per_body.any())
 
     # ----------------------------------------------------------------------------------------- reset
     def reset(self, ids: np.ndarray) -> tuple[DomainParams, np.ndarray]:
@@ -586,6 +600,9 @@ class ZerithTask:
             state.last_contact,
         ):
             started[ids] = 0
+        self._own_forces[ids] = 0.0
+        for i in ids.tolist():
+            self._body_rngs[i] = None
         return DomainParams.from_vector(start.domain_vector), start.qpos
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
@@ -608,7 +625,29 @@ class ZerithTask:
         for rng, row in zip(self.rngs, u, strict=True):
             rng.random(out=row)
         self.state, drawn, targets = begin_step(self.state, actions, u, self.arrays, self.task)
+        self.other_forces = self._other_forces(drawn.force) if self._per_body else None
         return targets, drawn
+
+    def _other_forces(self, force: np.ndarray) -> np.ndarray:
+        """The force (n, bodies - 1, 3) on each body of the target after the first, which gets `force` (n, 3):
+        `force` itself where the schedule draws one vector for the group, the body's own draw, redrawn and
+        held as `force` is, where it draws per body."""
+        sc, state = self.arrays, self.state
+        at = state.step_count + state.force_offset
+        per_body = sc.force_per_body[at]
+        draw, on = sc.force_due[at, 0], sc.force_due[at, 1]
+        own = self._own_forces
+        bodies = own.shape[1]
+        for i in np.flatnonzero(per_body & draw).tolist():
+            rng = self._body_rngs[i]
+            if rng is None:  # the episode's first per-body draw
+                rng = self._body_rngs[i] = np.random.default_rng(self._uniforms[i].view(np.uint64))
+            magnitude = np.broadcast_to(sc.force_magnitude[at[i]], (bodies, 2))
+            own[i] = horizontal_vectors(
+                rng.random((bodies, FORCE_DRAWS)), magnitude, np.full(bodies, sc.force_direction[at[i]])
+            )
+        own *= on[:, None, None]
+        return np.where(per_body[:, None, None], own, force[:, None, :])
 
     def after_physics(self, sensordata: np.ndarray, unstable: np.ndarray) -> StepOutput:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""

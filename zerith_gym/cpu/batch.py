@@ -104,7 +104,7 @@ class ZerithBatch:
         targets, drawn = self.task.before_physics(actions)
         force, command = drawn.force.copy(), self.task.state.command.copy()  # the task's arrays change later
         kicks = drawn.kicks if np.logical_or.reduce(drawn.push) else None
-        unstable = self.sim.step(targets, force, drawn.force_target, kicks)
+        unstable = self.sim.step(targets, force, drawn.force_target, kicks, self.task.other_forces)
         out = self.task.after_physics(self.sim.sensordata, unstable)
         ended = np.flatnonzero(out.terminated | out.truncated) if autoreset else ()
         if len(ended):  # the step's observations stay as they are: the reset writes into new arrays

@@ -108,17 +108,23 @@ class Simulator:
             self.sensordata[i] = datas[k].sensordata
 
     def step(
-        self, targets: np.ndarray, force: np.ndarray, force_target: np.ndarray, kicks: np.ndarray | None
+        self,
+        targets: np.ndarray,
+        force: np.ndarray,
+        force_target: np.ndarray,
+        kicks: np.ndarray | None,
+        other_forces: np.ndarray | None = None,
     ) -> np.ndarray:
         """One control step of every robot; returns which simulations became unstable, (num_robots,) bool.
 
         `targets` (n, lags, 12): joint targets by lag; `force` (n, 3): the force on each body of the
         robot's `force_target` (n,) (an index of `FORCE_TARGET_NAMES`), none on the other targets' bodies;
-        `kicks` (n, 2): horizontal velocity added to the base, or None. A simulation is unstable if
-        MuJoCo raised a bad-state warning during the step (it then resets the state) or if it ends with
-        non-finite velocities.
+        `kicks` (n, 2): horizontal velocity added to the base, or None; `other_forces` (n, k, 3): the
+        forces on the target's second, third, ... bodies where they differ from the first's (per-body
+        draws), or None. A simulation is unstable if MuJoCo raised a bad-state warning during the step (it
+        then resets the state) or if it ends with non-finite velocities.
         """
-        inputs = (targets, force, force_target.tolist(), kicks)
+        inputs = (targets, force, force_target.tolist(), kicks, other_forces)
         if self._pool is None:
             self._step_robots(self._groups[0], *inputs)
         else:  # the calling thread steps the first group while the pool steps the others
@@ -142,6 +148,7 @@ class Simulator:
         force: np.ndarray,
         force_target: list[int],
         kicks: np.ndarray | None,
+        other_forces: np.ndarray | None,
     ) -> None:
         """Step robots `ids`, writing their velocities, sensors and warning flags into the batch arrays."""
         for i in ids:
@@ -153,6 +160,9 @@ class Simulator:
                 self._force_target[i] = target
             for row in sim.force_rows[target]:
                 row[:] = force[i]
+            if other_forces is not None:  # per-body draws: the second body on gets its own
+                for row, own in zip(sim.force_rows[target][1:], other_forces[i], strict=False):
+                    row[:] = own
             if kicks is not None:
                 sim.qvel[:2] += kicks[i]
             warnings = sim.bad_state_warnings.tolist()

@@ -68,7 +68,8 @@ class Zerith1Env(gym.Env):
 
     ## Info (every step)
     `fall`, `sim_unstable`, `lin_vel_error` (|v_xy - v_cmd|), `ang_vel_error` (|yaw rate - cmd|),
-    `external_force` (N, world frame, on each body of the scenario's target group), `command`,
+    `external_force` (N, world frame, on each body of the scenario's target group: its first body's where
+    each body draws its own force, `ForceSchedule.per_body`), `command`,
     `reward_terms` (name -> weighted value), `terrain_level` (the tile row walked on: 0 unless the
     scenario's terrain has tiles); at an episode's end also `episode_terms`.
 

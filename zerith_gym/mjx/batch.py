@@ -89,6 +89,11 @@ class MjxBatch:
             self.task.robot.force_target_bodies(target)
         command, steps = self.options.fixed_command(scenario), self.constants.episode_steps
         arrays = scenario_arrays(scenario, command, steps, self.task.noise_scale)
+        if arrays.force_per_body.any():
+            raise ValueError(
+                f"scenario {scenario.name!r} draws a force per body (ForceSchedule.per_body): the cpu "
+                "backend draws those; the MJX backend draws one vector per target"
+            )
         self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
 
     # ------------------------------------------------- the robots contract (zerith_gym.contract.Robots)

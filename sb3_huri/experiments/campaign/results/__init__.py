@@ -13,11 +13,20 @@
 4. ``returns.png``: the training return against samples per method and protocol (Fig. 3 analog);
 5. ``tracking.png``: velocity-tracking errors under load, friction and both (Fig. 4 analog);
 6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog);
+6b. the risk levels each HuRi-family agent sets on the states it visits, per scenario: the shares of states
+   below, within and above its IQR band, mean beta and beta_RND, and whether the paper's order holds
+   (``benchmarks/risk_levels.py`` measures them);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog) and its Table 8 analog;
 8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
    and their final evaluations on the same robots where both were evaluated at comparable steps;
 9. the Table 9 analog: Zerith-1's survival on the multi-terrain test and down the platforms, beside the
-   paper's Table 9, and the HuRi-PPO pairs on these cases, on the same robots.
+   paper's Table 9, and the HuRi-PPO pairs on these cases, on the same robots;
+10. ``force_magnitude.png``: Zerith-1's survival over the force's magnitude, 0.1x to 1.5x of the paper's,
+   the scale at which each agent falls to 50%, and each HuRi-PPO pair's difference on the same robots under
+   both readings of the forces on hands and feet (``benchmarks/force_magnitude.py`` measures them);
+11. ``band.png``: the IQR band in training, the shares of each rollout's states below, within and above it
+   and the mean beta, per run with a quantile critic (section 3 holds the percentile-band runs to literal
+   HuRi and PPO at equal steps).
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.
@@ -28,6 +37,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sb3_huri.experiments.campaign.queue import ENV_ID, load_queue
+from sb3_huri.experiments.campaign.results.band import band_section
 from sb3_huri.experiments.campaign.results.evaluations import load_evaluations, pairs
 from sb3_huri.experiments.campaign.results.figures import (
     returns_section,
@@ -35,8 +45,10 @@ from sb3_huri.experiments.campaign.results.figures import (
     robustness_section,
     tracking_section,
 )
+from sb3_huri.experiments.campaign.results.force_magnitude import force_magnitude_section
 from sb3_huri.experiments.campaign.results.markdown import link
 from sb3_huri.experiments.campaign.results.quadruped import quadruped_findings, quadruped_section
+from sb3_huri.experiments.campaign.results.risk_levels import risk_levels_section
 from sb3_huri.experiments.campaign.results.rollout_shape import rollout_shape_section
 from sb3_huri.experiments.campaign.results.tables import (
     findings_section,
@@ -78,9 +90,12 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *returns_section(entries, figures, out),
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
+        *risk_levels_section(every_entry),
         *quadruped_section(quadruped, quadruped_evaluations, figures, out),
         *rollout_shape_section(entries, evaluations, figures, out),
         *terrain_section(evaluations),
+        *force_magnitude_section(evaluations, figures, out),
+        *band_section(every_entry, figures, out),
     ]
     atomic_write_text(out, "\n".join(lines) + "\n")
     return out

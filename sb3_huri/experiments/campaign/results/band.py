@@ -36,7 +36,7 @@ def band_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> 
     per percentile-band run the comparison at equal steps."""
     path = figures / "band.png"
     lines = [
-        "## 10. The IQR band in training: the risk levels in use",
+        "## 11. The IQR band in training: the risk levels in use",
         "",
         "Each rollout's share of states below, within and above the IQR band (seeking, neutral, averse: "
         "`beta_IQR` = -1, 0, +1), the band's thresholds and the mean `beta`, from `curve.csv` (runs trained "
