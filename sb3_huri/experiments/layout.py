@@ -21,6 +21,7 @@ its newest checkpoint, which ``state.json`` completes.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import tempfile
@@ -73,6 +74,29 @@ def read_json(path: Path, what: str) -> Any:
         return json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ExperimentError(f"{path} is corrupt ({error}); it should hold {what}") from error
+
+
+def resumed_record(
+    path: Path, record: dict[str, Any], same: tuple[str, ...], results: str, what: str
+) -> dict[str, Any]:
+    """A resumable analysis's `record` with the `results` (a mapping) and ``eval_s`` of the file at `path`,
+    when that file measured with the same values of the keys `same`; `record` as it is without a file.
+    ExperimentError for a file that is not such a record (naming `what` it should hold) or that measured
+    otherwise (naming the keys that differ)."""
+    if not path.is_file():
+        return record
+    previous = read_json(path, what)
+    if not isinstance(previous, dict) or not isinstance(previous.get(results), dict):
+        raise ExperimentError(f"{path} holds no {results}; delete it to measure anew")
+    canonical = functools.partial(json.dumps, sort_keys=True)  # equal for a value and its copy read back
+    differing = [key for key in same if canonical(previous.get(key)) != canonical(record[key])]
+    if differing:
+        raise ExperimentError(
+            f"{path} holds measurements with other {', '.join(differing)} "
+            f"({'; '.join(f'{key}: {previous.get(key)}' for key in differing)}); measure with those, "
+            "or delete the file to measure anew"
+        )
+    return {**record, results: previous[results], "eval_s": float(previous.get("eval_s", 0.0))}
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ import numpy as np
 
 from sb3_huri.experiments.campaign.queue import ENV_ID, EVALUATIONS
 from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate
-from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json
+from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json, resumed_record
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
 from zerith_gym.disturbances import ForceSchedule
 from zerith_gym.randomization import NOMINAL, RandomizationRanges
@@ -293,23 +293,9 @@ RESUMED_KEYS = ("env_id", "steps", "settings")
 def resumed(path: Path, record: dict[str, Any]) -> dict[str, Any]:
     """``record`` with the measurements and time of the file at ``path`` when it measured the same checkpoint
     the same way; ExperimentError if it measured it otherwise."""
-    if not path.is_file():
-        return record
-    previous = read_json(path, "an agent's survival over force magnitude")
-    if not isinstance(previous, dict) or not isinstance(previous.get("measurements"), dict):
-        raise ExperimentError(f"{path} holds no measurements; delete it to measure anew")
-    same = [
-        json.dumps(previous.get(key), sort_keys=True) == json.dumps(record[key], sort_keys=True)
-        for key in RESUMED_KEYS
-    ]
-    differing = [key for key, alike in zip(RESUMED_KEYS, same, strict=True) if not alike]
-    if differing:
-        raise ExperimentError(
-            f"{path} holds measurements with other {', '.join(differing)} "
-            f"({'; '.join(f'{key}: {previous.get(key)}' for key in differing)}); measure with those, "
-            "or delete the file to measure anew"
-        )
-    return {**record, "measurements": previous["measurements"], "eval_s": float(previous.get("eval_s", 0.0))}
+    return resumed_record(
+        path, record, RESUMED_KEYS, "measurements", "an agent's survival over force magnitude"
+    )
 
 
 def scale_key(scale: float) -> str:

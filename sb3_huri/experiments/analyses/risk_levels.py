@@ -31,7 +31,6 @@ command line; the results page's section 6b reads the files.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -43,7 +42,7 @@ import yaml
 
 from sb3_huri.experiments.campaign.queue import EVALUATIONS
 from sb3_huri.experiments.evaluation import PLANE_CASE, RiskStates, evaluate, parse_case
-from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json
+from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json, resumed_record
 from zerith_gym.scenarios import TEST_COMMAND
 
 RISK_LEVELS_SUFFIX = "-risk_levels.json"
@@ -285,24 +284,7 @@ RESUMED_KEYS = ("env_id", "steps", "model", "band", "settings")
 def _resumed(path: Path, record: dict[str, Any]) -> dict[str, Any]:
     """``record`` with the cases and time of the file at ``path`` when it measured the same checkpoint the
     same way; ExperimentError if it measured it otherwise."""
-    if not path.is_file():
-        return record
-    previous = read_json(path, "an agent's risk levels")
-    if not isinstance(previous, dict) or not isinstance(previous.get("cases"), dict):
-        raise ExperimentError(f"{path} is not a risk-levels file (no cases); delete it to measure anew")
-    differing = [key for key in RESUMED_KEYS if _canonical(previous.get(key)) != _canonical(record[key])]
-    if differing:
-        raise ExperimentError(
-            f"{path} holds measurements with other {', '.join(differing)} "
-            f"({'; '.join(f'{key}: {previous.get(key)}' for key in differing)}); measure with those, "
-            "or delete the file to measure anew"
-        )
-    return {**record, "cases": previous["cases"], "eval_s": float(previous.get("eval_s", 0.0))}
-
-
-def _canonical(value: Any) -> str:
-    """``value`` as JSON with sorted keys: equal for a value and its copy read back from a file."""
-    return json.dumps(value, sort_keys=True)
+    return resumed_record(path, record, RESUMED_KEYS, "cases", "an agent's risk levels")
 
 
 LINE_COLUMNS = (
