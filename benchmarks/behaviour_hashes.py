@@ -57,8 +57,8 @@ def training_hash(method: str, rollouts: int = 3) -> str:
     from rl_zoo3.utils import get_callback_list
     from stable_baselines3.common.callbacks import CallbackList
 
+    from sb3_huri.runner.build import preset_env, preset_model
     from sb3_huri.zoo import read_preset
-    from sb3_huri.zoo.presets import preset_env, preset_model
 
     th.set_num_threads(1)
     preset = read_preset("Zerith1-v0", ROOT / "hyperparams" / "huri_robust.yml")

@@ -37,8 +37,8 @@ def train_and_time(conf: Path, algo: str, steps: int, seed: int) -> dict[str, fl
     from rl_zoo3.utils import get_callback_list
     from stable_baselines3.common.callbacks import CallbackList
 
+    from sb3_huri.runner.build import preset_env, preset_model
     from sb3_huri.zoo import read_preset
-    from sb3_huri.zoo.presets import preset_env, preset_model
 
     th.set_num_threads(1)
     preset = read_preset(ENV_ID, conf)

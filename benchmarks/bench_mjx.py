@@ -48,7 +48,8 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset, robot_of
+from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
+from zerith_gym import robot_of
 from zerith_gym.mjx import MjxPhysics, SolverSettings
 from zerith_gym.physics import RANDOMIZED_FIELDS
 from zerith_gym.robot_spec import RobotSpec

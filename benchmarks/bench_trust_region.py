@@ -30,9 +30,9 @@ import numpy as np
 import torch as th
 
 from sb3_huri.common.mirror import mirror_loss
+from sb3_huri.runner.build import preset_env, preset_model
+from sb3_huri.runner.curve import UpdateRecorder
 from sb3_huri.zoo import read_preset
-from sb3_huri.zoo.checkpoints import UpdateRecorder
-from sb3_huri.zoo.presets import preset_env, preset_model
 from zerith_gym.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]

@@ -4,7 +4,7 @@
     python benchmarks/compare_agents.py A B --episodes 100 --seed 2000 --json comparison.json
 
 Each case (default: the six Table-1 scenarios, `side-impact` and `nominal@1.0`) runs `--episodes` robots,
-robot i seeded `seed + i`, once under each agent (`sb3_huri.experiments.evaluation.evaluate`, deterministic
+robot i seeded `seed + i`, once under each agent (`sb3_huri.runner.evaluation.evaluate`, deterministic
 policies), so both meet the same robots, forces and commands. Per case it prints each agent's survival,
 their difference (first minus second) with a 95% paired interval (Newcombe's, from the robots' paired
 outcomes), the robots only the first / only the second survived, and the exact McNemar p-value (a two-sided

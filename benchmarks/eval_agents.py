@@ -20,7 +20,7 @@ Columns:
 - `alt`: share of consecutive steps made by alternate feet, not together (1 = the feet take turns);
 - `1-supp`: share of the time on exactly one foot.
 
-The evaluation itself is `sb3_huri.experiments.evaluation` (also used by `python -m sb3_huri.experiments`);
+The evaluation itself is `sb3_huri.runner.evaluation` (also used by `python -m sb3_huri.experiments`);
 `sb3_huri.experiments.analyses.agents.evaluate_agents` runs it over agents and cases.
 """
 
@@ -34,13 +34,13 @@ from pathlib import Path
 import torch as th
 
 from sb3_huri.experiments.analyses.agents import evaluate_agents
-from sb3_huri.experiments.robustness import ENV_ID
+from zerith_gym import ZERITH1_ID
 from zerith_gym.scenarios import SCENARIOS
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = (
-    ROOT / "trained_agents" / "huri" / f"{ENV_ID}_1",
-    ROOT / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1",
+    ROOT / "trained_agents" / "huri" / f"{ZERITH1_ID}_1",
+    ROOT / "trained_agents" / "huri-baseline" / f"{ZERITH1_ID}_1",
 )
 DEFAULT_CASES = (
     "nominal@0.5",

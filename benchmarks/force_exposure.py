@@ -20,8 +20,8 @@ import torch as th
 
 import zerith_gym
 from sb3_huri.experiments.analyses.force_exposure import exposure, exposure_table, training_scenario
-from sb3_huri.experiments.robustness import ENV_ID
-from sb3_huri.zoo import load_run
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ZERITH1_ID
 from zerith_gym.scenarios import SCENARIOS
 
 
@@ -42,7 +42,7 @@ def main() -> None:
         scenario = training_scenario(args.scenario, args.scale, args.start_phases)
     except ValueError as error:
         parser.error(f"--start-phases: {error}")
-    model, normalizer = load_run(args.agent, ENV_ID)
+    model, normalizer = load_run(args.agent, ZERITH1_ID)
     env = zerith_gym.make_vec_env(args.robots, seed=args.seed, scenario=scenario, workers=0)
     kinds, steps, falls = exposure(model, normalizer, env, args.steps)
     env.close()

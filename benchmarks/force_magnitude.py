@@ -40,12 +40,12 @@ from sb3_huri.experiments.analyses.force_magnitude import (
     SCALES,
     Reading,
     agent_record,
-    campaign_agents,
     measure_agent,
     report,
 )
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.campaign.results.evaluations import campaign_agents
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.files import RunError
 
 
 def main() -> None:
@@ -95,7 +95,7 @@ def main() -> None:
             measure_agent(
                 agent.run, agent.steps, wanted, cases=cases, scales=scales, robots=args.robots, seed=args.seed
             )
-        except ExperimentError as error:
+        except RunError as error:
             parser.exit(1, f"{error}\n")
     print(f"\n{time.process_time() - began:.0f} s of CPU time in this process", flush=True)
 

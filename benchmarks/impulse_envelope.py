@@ -34,9 +34,9 @@ from pathlib import Path
 import torch as th
 
 from sb3_huri.experiments.analyses.impulses import PUSH_STEPS, print_envelope, print_table1
-from sb3_huri.experiments.evaluation import HoldStance
-from sb3_huri.experiments.robustness import ENV_ID
-from sb3_huri.zoo import load_run
+from sb3_huri.runner.evaluation import HoldStance
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ZERITH1_ID
 from zerith_gym.disturbances import FORCE_TARGETS
 from zerith_gym.scenarios import TEST_COMMAND
 
@@ -61,7 +61,7 @@ def main() -> None:
     if any(force <= 0 for force in args.forces):
         parser.error(f"--forces must be positive (N per body), got {args.forces}")
     th.set_num_threads(1)
-    model, normalizer = load_run(args.agent, ENV_ID)
+    model, normalizer = load_run(args.agent, ZERITH1_ID)
     command = TEST_COMMAND
     if args.stand:
         model, normalizer, command = HoldStance(), None, (0.0, 0.0, 0.0)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import zerith_gym
-from sb3_huri.zoo import load_run
+from sb3_huri.runner.folder import load_run
 from zerith_gym.scenarios import Scenario
 from zerith_gym.terrain import tile_terrain
 from zerith_gym.tiles import PAPER_TILE_KINDS

@@ -37,7 +37,7 @@ from sb3_huri.experiments.analyses.risk_levels import (
     measure_risk_levels,
     risk_levels_text,
 )
-from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.runner.files import RunError
 
 
 def main() -> None:
@@ -72,7 +72,7 @@ def main() -> None:
                 seed=args.seed,
                 episode_steps=args.episode_steps,
             )
-        except ExperimentError as error:
+        except RunError as error:
             parser.exit(1, f"{error}\n")
         print(f"\n{risk_levels_text(path)}\n", flush=True)
 

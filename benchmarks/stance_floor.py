@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, Scenario
 

@@ -26,9 +26,9 @@ import torch as th
 
 from sb3_huri.experiments.analyses.agents import check_cases
 from sb3_huri.experiments.analyses.domain_survival import FRICTION_BINS, parameter_names, survival_by_domain
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.robustness import ENV_ID
-from sb3_huri.zoo import load_run
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ZERITH1_ID
 
 
 def main() -> None:
@@ -54,7 +54,7 @@ def main() -> None:
     if args.parameter not in parameters:
         parser.error(f"unknown --parameter {args.parameter!r}; one of {', '.join(parameters)}")
     th.set_num_threads(1)
-    model, normalizer = load_run(args.agent, ENV_ID)
+    model, normalizer = load_run(args.agent, ZERITH1_ID)
     tables = survival_by_domain(model, normalizer, args.cases, args.robots, args.seed, args.parameter, edges)
     print(f"\n{tables}")
 

@@ -20,7 +20,7 @@ written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip`
     rl_zoo3 enjoy --algo huri --env Zerith1-v0 -f logs/ --no-render -n 1000
     python examples/watch_zerith.py logs/huri/Zerith1-v0_1
 
-The trainer is `sb3_huri.experiments.trainer.train_run`, the one the training campaign uses
+The trainer is `sb3_huri.runner.train_run`, the one the training campaign uses
 (`python -m sb3_huri.experiments campaign`). At the first rollout boundary past every `--checkpoint-freq`
 steps and at the end, the run folder gets its newest checkpoint: model, normalizer, random states,
 curriculum stage, terrain levels and the sessions' wall time, and `curve.csv` a row per rollout;
@@ -40,10 +40,11 @@ from typing import Any
 
 import yaml
 
-from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
-from sb3_huri.zoo import METHODS, next_run_folder, read_preset
+from sb3_huri.runner.folder import next_run_folder
+from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
+from sb3_huri.zoo import METHODS, read_preset
+from zerith_gym import ZERITH1_ID
 
-ENV_ID = "Zerith1-v0"
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_PRESET = ROOT / "hyperparams" / "huri.yml"
 
@@ -134,11 +135,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main() -> None:
     parser = build_parser()
     args = parser.parse_args()
-    if args.resume and not (args.resume / f"{ENV_ID}.zip").is_file():
-        parser.error(f"--resume {args.resume}: no {ENV_ID}.zip there (a run folder in RL Zoo's layout)")
+    if args.resume and not (args.resume / f"{ZERITH1_ID}.zip").is_file():
+        parser.error(f"--resume {args.resume}: no {ZERITH1_ID}.zip there (a run folder in RL Zoo's layout)")
     preset = None
     if args.conf_file is not None or not args.resume:
-        preset = read_preset(ENV_ID, args.conf_file or DEFAULT_PRESET)
+        preset = read_preset(ZERITH1_ID, args.conf_file or DEFAULT_PRESET)
     curriculum = None if args.curriculum_steps is None else (args.curriculum_steps, args.curriculum_stages)
     try:
         request = RunRequest(

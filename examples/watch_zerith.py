@@ -28,7 +28,8 @@ import numpy as np
 import torch as th
 
 import zerith_gym
-from sb3_huri.zoo import ROBOT_ENTRY_POINTS, load_run
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ROBOT_ENTRY_POINTS
 from zerith_gym.observations import layout_slices
 
 ENV_IDS = tuple(env_id for env_id, spec in gym.registry.items() if spec.entry_point in ROBOT_ENTRY_POINTS)

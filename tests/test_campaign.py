@@ -19,11 +19,11 @@ from sb3_huri import HuRiPPO
 from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.scheduler import _reread, campaign_lock, run_entry, runnable, status_table
-from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.robustness import CASES, read_rows
-from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.robustness import CASES, read_rows
+from sb3_huri.runner.state import RunState
+from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import read_preset
-from sb3_huri.zoo.checkpoints import RunState
 
 
 def _queue(folder: Path, entries: list[dict], **defaults) -> Path:

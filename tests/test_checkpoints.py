@@ -1,5 +1,5 @@
 """Training across sessions: newest checkpoint, learning curve, random states and curriculum stage, resumed
-by `examples/train_zerith.py --resume` (sb3_huri.zoo.checkpoints)."""
+by `examples/train_zerith.py --resume` (sb3_huri.runner)."""
 
 from __future__ import annotations
 
@@ -23,16 +23,11 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.runner.build import resume_overrides
+from sb3_huri.runner.checkpoint import RunCheckpoint
+from sb3_huri.runner.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
+from sb3_huri.runner.state import RunState, restore_random_states, start_on_levels, terrain_levels
 from sb3_huri.zoo import read_preset
-from sb3_huri.zoo.checkpoints import (
-    RunCheckpoint,
-    RunState,
-    restore_random_states,
-    start_on_levels,
-    terrain_levels,
-)
-from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
-from sb3_huri.zoo.presets import resume_overrides
 from zerith_gym.sb3.callbacks import RandomizationCurriculum
 from zerith_gym.terrain_levels import LevelRule
 
@@ -235,7 +230,7 @@ def test_a_stop_request_ends_training_after_the_rollout_under_way_with_a_checkpo
     the run saves a checkpoint that holds exactly the steps its model learnt from."""
     env = zerith_gym.make_vec_env(2, seed=0, workers=0)
     model = HuRiPPO("MlpPolicy", env, n_steps=8, n_epochs=1, policy_kwargs=dict(net_arch=[8]), seed=0)
-    checkpoint = RunCheckpoint(tmp_path / "run", {"n_envs": 2}, {"seed": 0}, every_steps=10_000)
+    checkpoint = RunCheckpoint(tmp_path / "run", {"n_envs": 2}, {"seed": 0}, checkpoint_freq=10_000)
     model.learn(1000, callback=CallbackList([_StopAt(checkpoint, 22), checkpoint]))
     assert model._n_updates == 2  # the second rollout (steps 17-32) was finished and learnt from
     assert model.num_timesteps == 34  # one step of the third rollout, then the stop
@@ -280,14 +275,14 @@ def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_p
 def test_hardware_names_the_processor_once(monkeypatch):
     import platform
 
-    from sb3_huri.zoo import checkpoints
+    from sb3_huri.runner import state
 
     monkeypatch.setattr(platform, "machine", lambda: "x86_64")
     monkeypatch.setattr(platform, "processor", lambda: "x86_64")  # as on many Linux machines
-    monkeypatch.setattr(checkpoints.os, "cpu_count", lambda: 16)
-    assert checkpoints.hardware().startswith("x86_64 16 cores, ")
+    monkeypatch.setattr(state.os, "cpu_count", lambda: 16)
+    assert state.hardware().startswith("x86_64 16 cores, ")
     monkeypatch.setattr(platform, "processor", lambda: "")
-    assert checkpoints.hardware().startswith("x86_64 16 cores, ")
+    assert state.hardware().startswith("x86_64 16 cores, ")
     monkeypatch.setattr(platform, "machine", lambda: "arm64")
     monkeypatch.setattr(platform, "processor", lambda: "arm")
-    assert checkpoints.hardware().startswith("arm64 arm 16 cores, ")
+    assert state.hardware().startswith("arm64 arm 16 cores, ")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from zerith_gym import SCENARIOS, Zerith1Env, gait, robot
-from zerith_gym.commands import CommandRanges, sample_commands
+from zerith_gym.commands import CommandRanges, command_bounds, commands_from_uniforms
 from zerith_gym.disturbances import ForceSchedule, horizontal_vectors, schedule_table
 from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SIZE, POLICY_LAYOUT, layout_slices
 from zerith_gym.randomization import NOMINAL, delay_lags
@@ -36,10 +36,28 @@ def test_gait_schedule_alternates_feet_and_is_smooth():
     assert np.all(height[:200, 0] == 0.0)  # no lift in stance
 
 
+def raibert_targets(
+    foot_phase: np.ndarray, command: np.ndarray, stance_width: float, period: float = gait.GAIT_PERIOD
+) -> np.ndarray:
+    """The cycle table's Raibert column written out: Raibert-heuristic foot positions (n, 2 feet, xy)
+    relative to the base, in the base's yaw frame.
+
+    A foot lands ahead of the hip by half the distance the base travels during a stance (at the
+    commanded velocity) and leaves it as far behind: offset = (|1 - 2 phi| - 0.5) * v_cmd * period / 2.
+    """
+    shift = (np.abs(1.0 - 2.0 * foot_phase) - 0.5) * (0.5 * period)  # (n, 2)
+    targets = np.empty((*foot_phase.shape, 2))
+    targets[..., 0] = shift * command[:, None, 0]
+    targets[..., 1] = shift * command[:, None, 1]
+    targets[:, 0, 1] += 0.5 * stance_width
+    targets[:, 1, 1] -= 0.5 * stance_width
+    return targets
+
+
 def test_raibert_targets_span_the_stance_stride():
     command = np.array([[0.7, 0.2, 0.0]])
-    touchdown = gait.raibert_targets(np.array([[0.0, 0.5]]), command, stance_width=0.2)[0]
-    liftoff = gait.raibert_targets(np.array([[0.5, 0.0]]), command, stance_width=0.2)[0]
+    touchdown = raibert_targets(np.array([[0.0, 0.5]]), command, stance_width=0.2)[0]
+    liftoff = raibert_targets(np.array([[0.5, 0.0]]), command, stance_width=0.2)[0]
     stride = 0.7 * gait.GAIT_PERIOD / 2  # distance travelled during one stance
     assert touchdown[0, 0] - liftoff[0, 0] == pytest.approx(stride)
     assert touchdown[0, 1] == pytest.approx(0.1 + 0.2 * gait.GAIT_PERIOD / 4)
@@ -55,7 +73,7 @@ def test_cycle_table_matches_the_gait_functions():
     np.testing.assert_allclose(table[k, 0:2], [np.sin(2 * np.pi * phase[0]), np.cos(2 * np.pi * phase[0])])
     np.testing.assert_allclose(table[k, 2:4], gait.desired_contact(feet)[0])
     np.testing.assert_allclose(table[k, 4:6], gait.swing_height_target(feet)[0])
-    targets = gait.raibert_targets(feet, np.array([[1.0, 0.0, 0.0]]), stance_width=0.0)[0]
+    targets = raibert_targets(feet, np.array([[1.0, 0.0, 0.0]]), stance_width=0.0)[0]
     np.testing.assert_allclose(table[k, 6:8], targets[:, 0])
     with pytest.raises(ValueError, match="whole number of control steps"):
         gait.cycle_table(0.03)
@@ -199,7 +217,8 @@ def test_horizontal_vectors_and_commands_cover_their_ranges():
     norms = np.linalg.norm(vectors, axis=1)
     assert norms.min() >= 150 and norms.max() <= 200 and np.all(vectors[:, 2] == 0)
     assert np.ptp(np.arctan2(vectors[:, 1], vectors[:, 0])) > 6.0
-    commands = sample_commands(u, CommandRanges())
+    ranges = CommandRanges()
+    commands = commands_from_uniforms(u, *command_bounds(ranges), ranges.standing_probability)
     standing = np.all(commands == 0, axis=1)
     assert 0.05 < standing.mean() < 0.15
     assert commands[:, 0].min() >= 0 and commands[:, 0].max() <= 0.7 and commands[~standing, 0].max() > 0.65

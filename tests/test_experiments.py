@@ -21,23 +21,15 @@ import pytest
 
 from sb3_huri.experiments import EvalSettings, ExperimentError, run_experiment, write_report
 from sb3_huri.experiments.__main__ import main
-from sb3_huri.experiments.evaluation import (
-    PROTOCOL,
-    RISK_CASES,
-    risk_file,
-)
+from sb3_huri.experiments.grid.layout import Settings, open_experiment, read_status, run_folder
 from sb3_huri.experiments.grid.report import _ordering
-from sb3_huri.experiments.layout import (
-    Settings,
-    atomic_write_json,
-    open_experiment,
-    read_status,
-    run_folder,
-)
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
-from sb3_huri.zoo import load_run, next_run_folder
-from sb3_huri.zoo.checkpoints import RunState
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.runner.curve import read_curve
+from sb3_huri.runner.evaluation import PROTOCOL, RISK_CASES
+from sb3_huri.runner.files import write_json
+from sb3_huri.runner.folder import load_run, next_run_folder
+from sb3_huri.runner.record import record_path, trace_path
+from sb3_huri.runner.state import RunState
 
 ENV = "Zerith1-v0"
 TINY_PRESET = """\
@@ -117,20 +109,23 @@ def test_local_grid_trains_and_evaluates_every_run_in_rl_zoo_layout(local_grid) 
             assert model.num_timesteps == 256 and normalizer is not None
             assert model.method == method
             assert model.seed == seed
-            evaluation = json.loads((folder / "evaluation.json").read_text())
+            # The evaluation record the campaign writes too: the checkpoint's, with each robot's outcome.
+            evaluation = json.loads(record_path(folder, 256).read_text())
+            assert (evaluation["method"], evaluation["seed"], evaluation["steps"]) == (method, seed, 256)
             assert sorted(evaluation["cases"]) == sorted(PROTOCOL)
             for metrics in evaluation["cases"].values():
                 assert 0.0 <= metrics["survive"] <= 1.0 and metrics["lin_err"] >= 0.0
+                assert metrics["survive"] == np.mean(metrics["survived"]) and len(metrics["survived"]) == 2
             for case in RISK_CASES:
                 assert "beta" in evaluation["cases"][case]
-                with np.load(risk_file(folder, case)) as trace:
+                with np.load(trace_path(folder, 256, case)) as trace:
                     assert trace["atoms"].shape == (20, 8 if method == "huri" else 1)
                     assert trace["beta"].shape == trace["iqr"].shape == trace["force"].shape == (20,)
             curve = read_curve(folder)
             assert [row["timesteps"] for row in curve] == [64, 128, 192, 256]
     # The baseline's scalar critic reads no risk; HuRi's does.
     assert status_of(out, "huri", 0).evaluated["trained_to"] == 256
-    baseline = json.loads((run_folder(out, ENV, "huri-baseline", 0) / "evaluation.json").read_text())
+    baseline = json.loads(record_path(run_folder(out, ENV, "huri-baseline", 0), 256).read_text())
     assert all(baseline["cases"][case]["beta"] == 0.0 for case in RISK_CASES)
 
 
@@ -320,7 +315,7 @@ def test_foreign_and_corrupt_folders_are_refused(tmp_path: Path, capsys, conf: P
     (folder / "status.json").write_text("{")
     assert main(["report", str(out)]) == 2
     assert f"{folder / 'status.json'} is corrupt" in capsys.readouterr().err
-    atomic_write_json(
+    write_json(
         folder / "status.json",
         {"format": "sb3-huri-run", "version": 1, "method": "huri-cvar", "seed": 0, "env": ENV},
     )
@@ -345,9 +340,9 @@ def test_a_continued_experiment_keeps_its_env_and_preset(tmp_path: Path) -> None
 
 def test_atomic_writes_leave_the_previous_file_when_a_write_fails(tmp_path: Path) -> None:
     path = tmp_path / "status.json"
-    atomic_write_json(path, {"steps": 1})
+    write_json(path, {"steps": 1})
     with pytest.raises(TypeError):
-        atomic_write_json(path, {"steps": object()})
+        write_json(path, {"steps": object()})
     assert json.loads(path.read_text()) == {"steps": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["status.json"]
 

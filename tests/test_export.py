@@ -29,7 +29,7 @@ import zerith_gym  # noqa: F401  (registers Zerith1-v0)
 from sb3_huri import METHODS, HuRiPPO
 from sb3_huri.export import FORMAT, actor_of, check_export, export_actor
 from sb3_huri.export.__main__ import main
-from sb3_huri.zoo.runs import load_run
+from sb3_huri.runner.folder import load_run
 from zerith_gym import gait, robot
 from zerith_gym.humanoid_task import FALL_HEIGHT, FALL_TILT
 from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE

@@ -9,7 +9,7 @@ import numpy as np
 
 import zerith_gym
 from sb3_huri.experiments.analyses.force_exposure import exposure
-from sb3_huri.experiments.evaluation import HoldStance
+from sb3_huri.runner.evaluation import HoldStance
 from zerith_gym.disturbances import TARGET_INDEX
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS, scaled_scenario

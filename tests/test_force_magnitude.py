@@ -29,9 +29,9 @@ from sb3_huri.experiments.analyses.force_magnitude import (
 from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.results.evaluations import load_evaluations
 from sb3_huri.experiments.campaign.results.force_magnitude import _pair_lines, force_magnitude_section
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.layout import ExperimentError
 from sb3_huri.experiments.statistics import paired_difference_interval
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.files import RunError
 from zerith_gym import robot
 from zerith_gym.disturbances import ForceSchedule
 from zerith_gym.envs.zerith1 import Zerith1Env
@@ -232,7 +232,7 @@ def fake_agent(tmp_path: Path, monkeypatch):
 
     monkeypatch.setattr(fm, "checkpoint_files", files)
     monkeypatch.setattr(fm, "evaluate", evaluate)
-    monkeypatch.setattr("sb3_huri.zoo.load_checkpoint", lambda model, normalizer: (_Model(), None))
+    monkeypatch.setattr("sb3_huri.runner.folder.load_checkpoint", lambda model, normalizer: (_Model(), None))
     return run, calls, fail_at
 
 
@@ -261,7 +261,7 @@ def test_a_measurement_skips_what_is_done_and_continues_after_an_interruption(fa
     assert survived(record, Reading(per_body=True, hold_steps=1), "continuous-centroid")[1.0].tolist() == [
         False, True, False, True
     ]  # fmt: skip
-    with pytest.raises(ExperimentError, match="settings"):
+    with pytest.raises(RunError, match="settings"):
         fm.measure_agent(run, 500, cases=cases, scales=(1.0,), robots=6)
 
 

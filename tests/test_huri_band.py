@@ -15,8 +15,8 @@ from stable_baselines3.common.logger import Logger
 from sb3_huri import METHODS, HuRiPPO
 from sb3_huri.common.quantiles import interquartile_range
 from sb3_huri.huri.risk import RiskModel
+from sb3_huri.runner.curve import RISK_COLUMNS, read_curve
 from sb3_huri.zoo import method_class
-from sb3_huri.zoo.curve import RISK_COLUMNS, read_curve
 
 pytestmark = pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
 
@@ -169,7 +169,7 @@ def test_the_percentile_method_is_huri_with_the_percentile_band():
 
 
 def test_a_campaign_curve_keeps_the_risk_levels_of_each_rollout(tmp_path):
-    from sb3_huri.zoo.checkpoints import CurveWriter
+    from sb3_huri.runner.curve import CurveWriter
 
     class Curve(CurveWriter):
         wall_s = 0.0

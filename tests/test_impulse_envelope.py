@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from sb3_huri.experiments.analyses import impulses as envelope
-from sb3_huri.experiments.evaluation import HoldStance, evaluate
+from sb3_huri.runner.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import NOMINAL
 from zerith_gym.scenarios import SCENARIOS
 

@@ -18,16 +18,14 @@ import torch as th
 import yaml
 from scipy import stats
 
-from sb3_huri.experiments.campaign import final_evaluation
-from sb3_huri.experiments.campaign.final_evaluation import (
-    EVALUATION_CASES,
-    evaluate_entry,
-    find_checkpoint,
-    trace_path,
-)
+from sb3_huri.experiments.campaign.final_evaluation import EVALUATION_CASES, evaluate_entry, find_checkpoint
 from sb3_huri.experiments.campaign.queue import CampaignEntry, QueueDefaults, load_queue
 from sb3_huri.experiments.campaign.results import write_results
-from sb3_huri.experiments.evaluation import (
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.experiments.statistics import paired_difference_interval
+from sb3_huri.runner import record
+from sb3_huri.runner.curve import CURVE_COLUMNS, append_row
+from sb3_huri.runner.evaluation import (
     PLANE_CASE,
     RISK_CASES,
     TABLE1_SCENARIOS,
@@ -35,9 +33,7 @@ from sb3_huri.experiments.evaluation import (
     RiskTrace,
     write_trace,
 )
-from sb3_huri.experiments.layout import ExperimentError
-from sb3_huri.experiments.statistics import paired_difference_interval
-from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
+from sb3_huri.runner.record import trace_path
 
 ENV = "Zerith1-v0"
 ROBOTS = 40
@@ -350,7 +346,7 @@ class Killed(Exception):
 
 def test_an_interrupted_evaluation_continues_with_the_next_case(tiny_run: Path, monkeypatch) -> None:
     entry = _entry(tiny_run, 16, eval_episodes=2, eval_seed=5)
-    real, calls, kill_at = final_evaluation.evaluate, [], [3]
+    real, calls, kill_at = record.evaluate, [], [3]
 
     def evaluate(*args, **kwargs):
         calls.append(args[2])
@@ -358,7 +354,7 @@ def test_an_interrupted_evaluation_continues_with_the_next_case(tiny_run: Path, 
             raise Killed
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(final_evaluation, "evaluate", evaluate)
+    monkeypatch.setattr(record, "evaluate", evaluate)
     with pytest.raises(Killed):
         evaluate_entry(entry, workers=0, episode_steps=3)
     partial = tiny_run / "evaluations" / "16.json.partial"

@@ -11,7 +11,7 @@ import yaml
 
 from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.results.band import band_section, early_signal_lines
-from sb3_huri.zoo.curve import CURVE_COLUMNS, append_row
+from sb3_huri.runner.curve import CURVE_COLUMNS, append_row
 
 STEP = 100_000
 

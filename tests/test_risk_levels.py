@@ -36,8 +36,9 @@ from sb3_huri.experiments.campaign.results.risk_levels import (
     risk_levels_section,
     rnd_sentence,
 )
-from sb3_huri.experiments.evaluation import RiskStates, evaluate
-from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.evaluation import RiskStates, evaluate
+from sb3_huri.runner.files import RunError
 
 ENV = "Zerith1-v0"
 STEPS = 64
@@ -84,7 +85,7 @@ def _measure(run: Path, cases: list[str], robots: int = 2) -> dict:
 
 
 def test_the_shares_are_the_bands_definition_on_the_states_visited(run: Path) -> None:
-    from sb3_huri.zoo import load_checkpoint
+    from sb3_huri.runner.folder import load_checkpoint
 
     data = _measure(run, ["nominal@1", "sudden-centroid"])
     model, _ = load_checkpoint(run / f"{ENV}.zip", None)
@@ -135,7 +136,7 @@ def test_a_second_call_measures_only_the_new_cases_and_refuses_other_settings(ru
     assert again["cases"]["nominal@1"] == first["cases"]["nominal@1"]  # read back as it was written
     assert set(again["cases"]) >= {"nominal@1", "uneven"} and again["eval_s"] >= first["eval_s"]
     assert "entry" not in again  # the campaign takes a file with an `entry` for a final evaluation
-    with pytest.raises(ExperimentError, match="other settings"):
+    with pytest.raises(RunError, match="other settings"):
         _measure(run, ["nominal@1"], robots=3)
     assert risk_levels_files(run) == {STEPS: risk_levels_path(run, STEPS)}
 

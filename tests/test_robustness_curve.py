@@ -11,10 +11,10 @@ import pytest
 
 from sb3_huri.experiments.analyses import robustness_curves as curve
 from sb3_huri.experiments.analyses.robustness_plot import FORK_COLORS, fork_own_rows, plot_curve
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.robustness import CASES, COLUMNS, read_rows, write_rows
 from sb3_huri.experiments.statistics import wilson_interval
-from sb3_huri.zoo.curve import append_row
+from sb3_huri.runner.curve import append_row
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.robustness import CASES, COLUMNS, read_rows, write_rows
 
 CASE_VALUE = 0.5
 

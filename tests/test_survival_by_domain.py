@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sb3_huri.experiments.analyses import domain_survival as survival
-from sb3_huri.experiments.evaluation import HoldStance, evaluate
+from sb3_huri.runner.evaluation import HoldStance, evaluate
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
 
 

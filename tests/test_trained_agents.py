@@ -17,7 +17,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.experiments.analyses import agents
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, gait_measures
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, gait_measures
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
@@ -95,8 +95,8 @@ def test_readme_main_command_watches_every_shipped_agent_walk() -> None:
 def test_shipped_quadruped_walks_at_the_commanded_speed() -> None:
     """The quadruped's agent (trained on terrains, docs/go2like.md): 4 robots of `nominal` walk their 20 s at
     0.5 and 1 m/s, within 0.15 m/s of the command on average."""
-    from sb3_huri.experiments.evaluation import evaluate
-    from sb3_huri.zoo import load_run
+    from sb3_huri.runner.evaluation import evaluate
+    from sb3_huri.runner.folder import load_run
 
     model, normalizer = load_run(REPO / "trained_agents" / "huri" / "Go2Like-v0_1", "Go2Like-v0")
     for vx in (0.5, 1.0):
@@ -143,7 +143,7 @@ def test_gait_measures_tell_walking_from_hopping_limping_and_standing() -> None:
 
 
 def test_load_run_names_the_missing_model(tmp_path):
-    from sb3_huri.zoo import load_run
+    from sb3_huri.runner.folder import load_run
 
     with pytest.raises(FileNotFoundError, match=r"Zerith1-v0\.zip not found"):
         load_run(tmp_path, "Zerith1-v0")
@@ -154,8 +154,8 @@ def test_shipped_agent_survives_the_papers_push_tests(method: str) -> None:
     """Both shipped agents were trained with the robust recipe and survive Table 1 (docs/training.md,
     "Shipped agents"): on the paper's sudden pushes at the centroid and the side impact, every one of 4 robots
     walks its 20 s at the 1 m/s command. A change to the env that breaks what they learned fails here."""
-    from sb3_huri.experiments.evaluation import evaluate
-    from sb3_huri.zoo import load_run
+    from sb3_huri.runner.evaluation import evaluate
+    from sb3_huri.runner.folder import load_run
 
     model, normalizer = load_run(REPO / "trained_agents" / method / f"{ENV_ID}_1", ENV_ID, normalized=True)
     for scenario in ("sudden-centroid", "side-impact"):
@@ -210,7 +210,7 @@ def test_compare_agents_averages_table1_per_robot() -> None:
 def test_copy_agent_keeps_what_acts_and_trains_and_leaves_the_rollout_state(tmp_path) -> None:
     """``copy_agent`` (how the quadruped's agent was shipped): the copy acts as the run does, trains on, and
     holds no robot's last observation."""
-    from sb3_huri.zoo.runs import copy_agent, load_run
+    from sb3_huri.runner.folder import copy_agent, load_run
 
     source = REPO / "trained_agents" / "huri-baseline" / f"{ENV_ID}_1"
     copy = copy_agent(source, ENV_ID, tmp_path / "agent")

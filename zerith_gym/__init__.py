@@ -14,6 +14,7 @@ them with MuJoCo MJX on JAX's default device (`zerith_gym.mjx`, the optional `mj
 
 from typing import Any
 
+import gymnasium as gym
 from gymnasium.envs.registration import register
 
 from zerith_gym.envs.zerith1 import Zerith1Env
@@ -23,23 +24,34 @@ from zerith_gym.task import EPISODE_STEPS
 
 __all__ = [
     "DEFAULT_REWARD_WEIGHTS",
+    "GO2LIKE_ID",
     "REWARD_NAMES",
     "SCENARIOS",
+    "ZERITH1_ID",
     "Zerith1Env",
     "ZerithVecEnv",
     "make_vec_env",
+    "robot_of",
 ]
 
-register(
-    id="Zerith1-v0",
-    entry_point="zerith_gym.envs.zerith1:Zerith1Env",
-    max_episode_steps=EPISODE_STEPS,
-)
-register(
-    id="Go2Like-v0",
-    entry_point="zerith_gym.envs.go2like:Go2LikeEnv",
-    max_episode_steps=EPISODE_STEPS,
-)
+ZERITH1_ID = "Zerith1-v0"
+GO2LIKE_ID = "Go2Like-v0"
+ZERITH1_ENTRY_POINT = "zerith_gym.envs.zerith1:Zerith1Env"
+GO2LIKE_ENTRY_POINT = "zerith_gym.envs.go2like:Go2LikeEnv"
+ROBOT_ENTRY_POINTS = {ZERITH1_ENTRY_POINT: "zerith1", GO2LIKE_ENTRY_POINT: "go2like"}
+"""The entry points of the envs `make_vec_env` batches, and the robot (its `robot` option) of each."""
+
+register(id=ZERITH1_ID, entry_point=ZERITH1_ENTRY_POINT, max_episode_steps=EPISODE_STEPS)
+register(id=GO2LIKE_ID, entry_point=GO2LIKE_ENTRY_POINT, max_episode_steps=EPISODE_STEPS)
+
+
+def robot_of(env_id: str) -> str:
+    """The robot (`make_vec_env`'s `robot` option) of a registered Zerith env id, also one registered under
+    another id with a Zerith entry point; ValueError for an env id that is not one."""
+    entry_point = gym.spec(env_id).entry_point
+    if entry_point not in ROBOT_ENTRY_POINTS:
+        raise ValueError(f"{env_id} is not a Zerith env ({ZERITH1_ID}, {GO2LIKE_ID})")
+    return ROBOT_ENTRY_POINTS[entry_point]
 
 
 def __getattr__(name: str) -> Any:

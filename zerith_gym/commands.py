@@ -39,8 +39,3 @@ def commands_from_uniforms(
     xp = namespace(uniforms)
     commands = low + (high - low) * uniforms[:, 1:4]
     return xp.where(uniforms[:, 0:1] < standing_probability, 0.0, commands)
-
-
-def sample_commands(uniforms: np.ndarray, ranges: CommandRanges) -> np.ndarray:
-    """Commands (n, 3) from `uniforms` (n, 4) in [0, 1) for `ranges`."""
-    return commands_from_uniforms(uniforms, *command_bounds(ranges), ranges.standing_probability)

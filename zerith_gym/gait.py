@@ -46,23 +46,6 @@ def swing_height_target(foot_phase: np.ndarray, height: float = SWING_HEIGHT) ->
     return height * (1.0 - np.abs(1.0 - 2.0 * swing_progress))
 
 
-def raibert_targets(
-    foot_phase: np.ndarray, command: np.ndarray, stance_width: float, period: float = GAIT_PERIOD
-) -> np.ndarray:
-    """Raibert-heuristic foot positions (n, 2 feet, xy) relative to the base, in the base's yaw frame.
-
-    A foot lands ahead of the hip by half the distance the base travels during a stance (at the
-    commanded velocity) and leaves it as far behind: offset = (|1 - 2 phi| - 0.5) * v_cmd * period / 2.
-    """
-    shift = (np.abs(1.0 - 2.0 * foot_phase) - 0.5) * (0.5 * period)  # (n, 2)
-    targets = np.empty((*foot_phase.shape, 2))
-    targets[..., 0] = shift * command[:, None, 0]
-    targets[..., 1] = shift * command[:, None, 1]
-    targets[:, 0, 1] += 0.5 * stance_width
-    targets[:, 1, 1] -= 0.5 * stance_width
-    return targets
-
-
 def cycle_table(control_dt: float, period: float = GAIT_PERIOD) -> np.ndarray:
     """Every clock-driven signal at each control step of one gait cycle, (steps_per_cycle, 8).
 

@@ -5,9 +5,10 @@ from typing import Any
 
 import numpy as np
 import torch as th
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.torch_layers import create_mlp
+from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.utils import obs_as_tensor
 from torch import nn
 
@@ -141,3 +142,14 @@ class RNDTrainingCallback(BaseCallback):
             inputs = policy.critic_features(observations)
         loss = policy.rnd.fit(inputs, n_epochs=self.model.n_epochs, batch_size=self.model.batch_size)
         self.logger.record("train/rnd_loss", loss)
+
+
+def with_rnd_training(callback: MaybeCallback) -> list[BaseCallback]:
+    """`callback` (none, one, or a list, as ``learn`` takes it) as a list led by an
+    :class:`RNDTrainingCallback`, so that the RND predictor trains at the end of each rollout before the
+    other callbacks run. SB3 builds and initializes the list once, so each callback is initialized once."""
+    if callback is None:
+        callback = []
+    elif not isinstance(callback, list):
+        callback = [callback if isinstance(callback, BaseCallback) else ConvertCallback(callback)]
+    return [RNDTrainingCallback(), *callback]

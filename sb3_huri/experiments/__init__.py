@@ -6,16 +6,12 @@
     python -m sb3_huri.experiments campaign [--status] [--max-wall-minutes M]
     python -m sb3_huri.experiments results
 
-Shared by the grid, the campaign and the analyses:
+Every run of them is trained, checkpointed, evaluated and loaded by ``sb3_huri.runner``; these are the
+drivers of many runs. Shared by them:
 
-- ``trainer``: the one trainer of every run: start or resume a run folder, checkpoint it between rollouts;
-- ``evaluation``: the paper's protocol (Table 1 survival, velocity tracking, terrain tests of Tables 8/9,
-  risk traces) on a trained agent;
-- ``robustness``: a run's robustness rows (``robustness.csv``), a Table-1 mean every few million steps;
 - ``statistics``: the interval estimates of every table (t, Wilson, paired Newcombe);
 - ``paper``: the paper's own numbers, printed beside ours;
-- ``layout``: the grid's experiment folder (its settings, run folders and ``status.json``), and the
-  ``ExperimentError`` and atomic writes every command uses.
+- ``errors``: ``ExperimentError``, which every command prints without a traceback.
 
 Then one package per job, each listing its modules:
 
@@ -28,8 +24,9 @@ Then one package per job, each listing its modules:
 From Python: ``run_experiment(out, env, methods, seeds, timesteps, ...)`` and ``write_report(out)``.
 """
 
+from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.experiments.grid.driver import run_experiment
+from sb3_huri.experiments.grid.layout import EvalSettings
 from sb3_huri.experiments.grid.report import write_report
-from sb3_huri.experiments.layout import EvalSettings, ExperimentError
 
 __all__ = ["EvalSettings", "ExperimentError", "run_experiment", "write_report"]

@@ -25,7 +25,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from sb3_huri.experiments.layout import EvalSettings, ExperimentError
+from sb3_huri.experiments.campaign.queue import DEFAULT_QUEUE
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.experiments.grid.layout import EvalSettings
+from sb3_huri.runner.files import RunError
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -66,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     report = commands.add_parser("report", help="write DIR/report.md and the figures")
     report.add_argument("out", type=Path, help="experiment folder")
     campaign = commands.add_parser("campaign", help="train the campaign's queue (resumable), or --status")
-    campaign.add_argument("--queue", type=Path, default=Path("runs/campaign.yml"), help="the queue file")
+    campaign.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
     campaign.add_argument("--slots", type=int, default=None, help="entries at once (default: one per core)")
     campaign.add_argument(
         "--max-wall-minutes", type=float, default=None, help="stop, with checkpoints, after"
@@ -74,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     campaign.add_argument("--status", action="store_true", help="print where every entry stands, and exit")
     campaign.add_argument("--entry", default=None, help="train and evaluate this one entry in this process")
     results = commands.add_parser("results", help="write docs/results.md and its figures from the runs")
-    results.add_argument("--queue", type=Path, default=Path("runs/campaign.yml"), help="the queue file")
+    results.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
     results.add_argument("--out", type=Path, default=Path("docs/results.md"), help="the page to write")
     return parser
 
@@ -123,7 +126,9 @@ def main(argv: list[str] | None = None) -> int:
             args.methods,
             args.seeds,
             args.timesteps,
-            EvalSettings(args.eval_episodes, args.eval_episode_steps, args.eval_seed),
+            EvalSettings(
+                episodes=args.eval_episodes, seed=args.eval_seed, episode_steps=args.eval_episode_steps
+            ),
             backend=args.backend,
             parallel=args.workers,
             cpus_per_run=args.cpus_per_run,
@@ -131,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
             checkpoint_freq=args.checkpoint_freq,
             ray_address=args.ray_address,
         )
-    except ExperimentError as error:
+    except RunError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -1,6 +1,6 @@
 """The paper's numbers and the orderings it reports, to set our results beside.
 
-From the HuRi paper (DESIGN.md section 6): Table 1, the success rate (episodes without a fall) of each
+From the HuRi paper: Table 1, the success rate (episodes without a fall) of each
 method under continuous (U[0, 100] N) and sudden (U[150, 200] N) forces on the centroid, hands and feet,
 5 seeds x 10 runs each; the average training return of each method (its Fig. 3); and the risk the critic
 reads in its Fig. 5: interquartile range on uneven ground > under a push > walking on the plane; and the
@@ -11,7 +11,7 @@ reference.
 
 from __future__ import annotations
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, TERRAIN_SCENARIOS
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, TERRAIN_SCENARIOS
 
 TABLE1: dict[str, dict[str, float]] = {
     method: dict(zip(TABLE1_SCENARIOS, rates, strict=True))

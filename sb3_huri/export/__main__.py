@@ -13,7 +13,8 @@ import sb3_huri.export as package
 from sb3_huri.export.graph import INPUT_NAME, OUTPUT_NAME, actor_of
 from sb3_huri.export.metadata import training_scenario_of
 from sb3_huri.export.onnx_file import check_export, export_actor
-from sb3_huri.zoo.runs import load_run
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ZERITH1_ID
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -26,7 +27,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument(
         "run", type=Path, help="run folder in RL Zoo's layout (<env>.zip, <env>/vecnormalize.pkl)"
     )
-    parser.add_argument("--env", default="Zerith1-v0", help="environment id of the run (default: Zerith1-v0)")
+    parser.add_argument(
+        "--env", default=ZERITH1_ID, help=f"environment id of the run (default: {ZERITH1_ID})"
+    )
     parser.add_argument("--output", "-o", type=Path, required=True, help="the ONNX file to write")
     parser.add_argument(
         "--unnormalized",

@@ -32,7 +32,7 @@ def deployment_metadata(env_id: str, input_size: int, training_scenario: str | N
     """
     import gymnasium as gym
 
-    from sb3_huri.zoo import ROBOT_ENTRY_POINTS
+    from zerith_gym import ROBOT_ENTRY_POINTS
 
     robot_name = ROBOT_ENTRY_POINTS.get(str(gym.spec(env_id).entry_point))
     if robot_name is None:

@@ -1,6 +1,7 @@
 """HuRiPPO: adaptive risk-aware distributional PPO."""
 
-from sb3_huri.huri.huri import HuRiPPO, UnnormalizedRewardWarning
+from sb3_huri.huri.huri import HuRiPPO
+from sb3_huri.huri.hyperparameters import UnnormalizedRewardWarning
 from sb3_huri.huri.methods import METHODS, RiskPreset, method_of_saved
 from sb3_huri.huri.policies import HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel

@@ -1,44 +1,41 @@
 """HuRiPPO: adaptive risk-aware distributional PPO (HuRi) as a Stable-Baselines3 on-policy algorithm."""
 
-import warnings
 from collections import defaultdict
-from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from gymnasium.wrappers import NormalizeReward
-from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
-from stable_baselines3.common.utils import (
-    FloatSchedule,
-    explained_variance,
-    obs_as_tensor,
-    update_learning_rate,
-)
-from stable_baselines3.common.vec_env import VecEnv, unwrap_vec_normalize
+from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
+from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
 from sb3_huri.common.energy import energy_distance
-from sb3_huri.common.expectation import EXPECTATION_LOSSES, expectation_loss
-from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
+from sb3_huri.common.expectation import expectation_loss
+from sb3_huri.common.learning_rate import kl_adaptive_rate, set_learning_rates
+from sb3_huri.common.mirror import NormalizedMirror, env_mirrors, mirror_loss
+from sb3_huri.common.observations import add_batch_axis, concatenate_observations, to_numpy
 from sb3_huri.common.quantiles import interquartile_range
-from sb3_huri.common.rnd import RNDTrainingCallback
+from sb3_huri.common.rnd import with_rnd_training
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
-from sb3_huri.huri.methods import METHODS, method_of_saved
+from sb3_huri.huri.hyperparameters import (
+    RULES,
+    agreeing,
+    check_action_space,
+    check_hyperparameters,
+    completed_policy_kwargs,
+    resolve_batch_size,
+    warn_unless_rewards_normalized,
+)
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
+from sb3_huri.huri.saves import fitting_optimizer_state, upgrade_saved_attributes
 
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
-
-SUPPORTED_ACTION_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
-
-
-class UnnormalizedRewardWarning(UserWarning):
-    """HuRiPPO learns on an env whose rewards are not normalized, so the IQR thresholds may be meaningless."""
 
 
 class HuRiPPO(OnPolicyAlgorithm):
@@ -50,9 +47,9 @@ class HuRiPPO(OnPolicyAlgorithm):
     ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)``, where each state's risk parameter ``beta_s`` is
     ``beta_IQR`` (from the interquartile range of its atoms, Algorithm 1) plus ``tanh`` of its RND novelty.
     The paper's methods are presets (``method``); every knob below overrides its preset. The risk arguments
-    (``method`` to ``iqr_risk_levels``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
+    (``method`` to ``iqr_band_smoothing``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
     ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
-    names, which it saves.
+    names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others.
     Defaults are the paper's Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
 
     :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
@@ -75,15 +72,14 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param use_sde: use generalized state-dependent exploration
     :param sde_sample_freq: resample the gSDE noise matrix every n steps (-1: once per rollout)
     :param target_kl: stop an update early when the approximate KL divergence exceeds ``1.5 * target_kl``
-    :param desired_kl: adapt the learning rate to this KL per minibatch (divided by 1.5 above twice the
-        KL, multiplied by 1.5 below half of it, within ``kl_learning_rate_bounds``), as legged-robot PPO
-        trainers do; ``None`` follows ``learning_rate``. With ``critic_learning_rate``, only the actor's
-        rate adapts
-    :param critic_learning_rate: the critic's own learning rate (a float or a schedule); ``None`` (default)
-        shares ``learning_rate``. A trust region on a narrow action noise needs a small actor rate, which
-        would stop the critic learning if it were shared (docs/huri.md)
-    :param method: the method's preset, one of ``huri-baseline``, ``huri-cvar0.5``, ``huri-no-rnd``,
-        ``huri-no-iqr``, ``huri``, ``huri-cvar`` (see ``sb3_huri.huri.methods``; the RL Zoo algorithm names)
+    :param desired_kl: adapt the learning rate (the actor's, with ``critic_learning_rate``) to this KL per
+        minibatch within ``kl_learning_rate_bounds``, as legged-robot PPO trainers do
+        (``sb3_huri.common.learning_rate``); ``None`` follows ``learning_rate``
+    :param critic_learning_rate: the critic's own learning rate (a float or a schedule), so that a small
+        trust-region rate of the actor does not stop the critic learning; ``None`` (default) shares
+        ``learning_rate``
+    :param method: the method's preset, a name of ``sb3_huri.huri.METHODS`` (``huri``, ``huri-baseline``,
+        ...; the RL Zoo algorithm names)
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
         given, else 64 (ignored by ``huri-baseline``, whose critic is scalar)
     :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the method's
@@ -94,26 +90,21 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
     :param iqr_risk_levels: risk level below, within and above the band; ``None`` takes
         ``(-1, 0, 1)`` for Wang and ``(1, 1, 0.5)`` for CVaR (paper A.8)
-    :param iqr_band: ``"absolute"``: ``iqr_thresholds`` are fixed, in units of the normalized return (the
-        paper's band as printed); ``"percentile"``: the thresholds are the ``iqr_percentiles`` of the
-        critic's per-state IQR, averaged over recent rollouts, saved with the model and fixed outside
-        training (a state is averse when its critic is more uncertain than usual for this agent); ``None``
-        takes the method's
+    :param iqr_band: ``"absolute"``: ``iqr_thresholds`` are fixed (the paper's band as printed);
+        ``"percentile"``: they follow the ``iqr_percentiles`` of the critic's per-state IQR over recent
+        rollouts, are saved and stay fixed outside training; ``None`` takes the method's
     :param iqr_percentiles: ``(p_min, p_max)`` of the percentile band
     :param iqr_band_smoothing: weight of each new rollout in the percentile band's exponential average
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
     :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
     :param expectation_loss: ``"distorted"``: the predicted mean against its own distorted mean (eq. 5 as
-        printed, which also penalizes the spread); ``"target"``: the predicted mean against the target atoms'
-        mean (see ``sb3_huri.common.expectation`` and the docs for the measurements behind the default)
-    :param rnd_kwargs: keyword arguments of the :class:`~sb3_huri.common.rnd.RandomNetworkDistillation`
-        (``target_net_arch``, ``predictor_net_arch``, ``output_dim``, ``learning_rate``, ``normalize_error``,
-        ...); ``None`` takes ``policy_kwargs["rnd_kwargs"]`` if given, else its defaults (the paper's)
-    :param mirror_coef: weight of a symmetry loss on the actor (``sb3_huri.common.mirror``): the squared
-        distance between its action mean on a mirrored observation and its mirrored action mean, for an env
-        that gives ``policy_mirror`` and ``action_mirror`` maps (Zerith1-v0: ``zerith_gym.symmetry``);
-        0 (default): none. The paper has no such loss
+        printed, which also penalizes the spread); ``"target"``: against the target atoms' mean
+        (``sb3_huri.common.expectation``)
+    :param rnd_kwargs: keyword arguments of the :class:`~sb3_huri.common.rnd.RandomNetworkDistillation`;
+        ``None`` takes ``policy_kwargs["rnd_kwargs"]`` if given, else its defaults (the paper's)
+    :param mirror_coef: weight of a symmetry loss on the actor (``sb3_huri.common.mirror``), for an env that
+        gives ``policy_mirror`` and ``action_mirror`` maps (Zerith1-v0); 0 (default): none, as in the paper
     :param stats_window_size: episodes averaged in the rollout logs
     :param tensorboard_log: tensorboard log folder (None: no logging)
     :param policy_kwargs: extra arguments of the policy (e.g. ``net_arch``, ``activation_fn``); may hold
@@ -182,7 +173,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     ):
         self.method, policy_kwargs = method, dict(policy_kwargs or {})
         self._set_risk_model(RiskModel.from_arguments(
-            method, n_quantiles=_agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
+            method, n_quantiles=agreeing("n_quantiles", n_quantiles, policy_kwargs, default=None),
             distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
             cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
             iqr_band=iqr_band, iqr_percentiles=iqr_percentiles, iqr_band_smoothing=iqr_band_smoothing,
@@ -191,11 +182,10 @@ class HuRiPPO(OnPolicyAlgorithm):
         if not _init_setup_model and iqr_band is None:  # as `load` builds it: see `_setup_model`
             del self.iqr_band
         use_rnd = self.risk_model.use_rnd
-        self.rnd_kwargs = _agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
+        self.rnd_kwargs = agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
         self.sr_lambda = float(sr_lambda)
         self.quantile_coef, self.expectation_coef = quantile_coef, expectation_coef
-        self.expectation_loss = expectation_loss
-        self.mirror_coef = mirror_coef
+        self.expectation_loss, self.mirror_coef = expectation_loss, mirror_coef
         self._mirrors: tuple[NormalizedMirror, NormalizedMirror] | None = None  # set by each update
         self.n_minibatches, self.desired_kl = n_minibatches, desired_kl
         self.critic_learning_rate = critic_learning_rate
@@ -212,7 +202,10 @@ class HuRiPPO(OnPolicyAlgorithm):
             tensorboard_log=tensorboard_log, policy_kwargs=policy_kwargs, verbose=verbose, device=device,
             seed=seed, _init_setup_model=False,
         )  # fmt: skip
-        self.batch_size = self._checked_batch_size(batch_size)
+        if self.env is not None:
+            check_action_space(self.action_space)
+            batch_size = resolve_batch_size(batch_size, self.n_minibatches, self.n_steps * self.env.num_envs)
+        self.batch_size = batch_size
         self.n_epochs, self.clip_range = n_epochs, clip_range
         self.normalize_advantage, self.target_kl = normalize_advantage, target_kl
         if _init_setup_model:
@@ -228,103 +221,46 @@ class HuRiPPO(OnPolicyAlgorithm):
     def _check_settings(self, **others: Any) -> None:
         """ValueError naming the first invalid hyperparameter (the attributes set so far and `others`); the
         risk settings are the risk model's to check."""
-        checked = [name for name in _RULES if name not in others]
-        _check_hyperparameters(**others, **{name: getattr(self, name) for name in checked})
-
-    def _checked_batch_size(self, batch_size: int | None) -> int | None:
-        """The minibatch size for the env (as given without an env); ValueError for an unsupported action
-        space."""
-        if self.env is None:
-            return batch_size
-        if not isinstance(self.action_space, SUPPORTED_ACTION_SPACES):
-            raise ValueError(
-                f"HuRiPPO does not support the action space {self.action_space}: "
-                f"expected one of {[space.__name__ for space in SUPPORTED_ACTION_SPACES]}"
-            )
-        return _resolve_batch_size(batch_size, self.n_minibatches, self.n_steps * self.env.num_envs)
+        checked = [name for name in RULES if name not in others]
+        check_hyperparameters(**others, **{name: getattr(self, name) for name in checked})
 
     def _setup_model(self) -> None:
-        # `load` restores the saved attributes: a model saved before `variant` became `method` has `variant`.
-        self.method = method_of_saved(self.__dict__) or self.method
-        self.__dict__.pop("variant", None)
-        # `load` builds the model without `iqr_band`, then restores the saved attributes: a save from before
-        # the band had a reading of its own has none, and takes its method's (the absolute band).
-        preset = METHODS.get(self.method)
-        self.__dict__.setdefault("iqr_band", preset.iqr_band if preset is not None else "absolute")
+        # `load` has restored the saved attributes by now, an earlier version's too: under today's names.
+        upgrade_saved_attributes(self.__dict__)
         # The risk settings may be a loaded model's (or given to `load`): its risk model is rebuilt from them.
         self._set_risk_model(RiskModel.from_attributes(self))
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
-        self._complete_policy_kwargs()
-        buffer_class = (
-            HuRiDictRolloutBuffer if isinstance(self.observation_space, spaces.Dict) else HuRiRolloutBuffer
-        )
+        # At setup rather than construction, so that `load(..., custom_objects={"policy_kwargs": ...})` with
+        # only network options still gets the saved model's critic and RND.
+        self.policy_kwargs = completed_policy_kwargs(
+            self.policy_kwargs, self.risk_model, self.rnd_kwargs,
+            critic_param_group=getattr(self, "critic_learning_rate", None) is not None, method=self.method,
+        )  # fmt: skip
+        is_dict = isinstance(self.observation_space, spaces.Dict)
+        buffer_class = HuRiDictRolloutBuffer if is_dict else HuRiRolloutBuffer
         self.rollout_buffer = buffer_class(
-            self.n_steps,
-            self.observation_space,  # type: ignore[arg-type]
-            self.action_space,
-            device=self.device,
-            gamma=self.gamma,
-            gae_lambda=self.gae_lambda,
-            n_envs=self.n_envs,
-            n_quantiles=self.risk_model.n_quantiles,
-            sr_lambda=self.sr_lambda,
-        )
+            self.n_steps, self.observation_space, self.action_space,  # type: ignore[arg-type]
+            device=self.device, gamma=self.gamma, gae_lambda=self.gae_lambda, n_envs=self.n_envs,
+            n_quantiles=self.risk_model.n_quantiles, sr_lambda=self.sr_lambda,
+        )  # fmt: skip
         self.policy = self.policy_class(  # type: ignore[assignment]
-            self.observation_space,
-            self.action_space,
-            self.lr_schedule,
-            use_sde=self.use_sde,
+            self.observation_space, self.action_space, self.lr_schedule, use_sde=self.use_sde,
             **self.policy_kwargs,
-        )
-        self.policy = self.policy.to(self.device)
+        ).to(self.device)  # fmt: skip
         self.clip_range = FloatSchedule(self.clip_range)
         self.critic_lr_schedule = (
             None if self.critic_learning_rate is None else FloatSchedule(self.critic_learning_rate)
         )
 
-    def _complete_policy_kwargs(self) -> None:
-        """Put the critic's width and the RND settings into ``policy_kwargs``, so a saved model rebuilds them.
-
-        Run at setup rather than construction, so that ``load(..., custom_objects={"policy_kwargs": ...})``
-        with only network options still gets the saved model's critic and RND.
-        """
-        kwargs = dict(self.policy_kwargs)
-        if getattr(self, "critic_learning_rate", None) is not None:
-            kwargs["critic_param_group"] = True  # the optimizer's second group: the critic's own rate
-        n_quantiles = self.risk_model.n_quantiles
-        if kwargs.setdefault("n_quantiles", n_quantiles) != n_quantiles:
-            raise ValueError(
-                f"policy_kwargs['n_quantiles']={kwargs['n_quantiles']} does not match the critic of "
-                f"method={self.method!r} ({n_quantiles} atoms)"
-            )
-        rnd_kwargs = kwargs.get("rnd_kwargs")
-        kwargs["rnd_kwargs"] = (
-            (rnd_kwargs if rnd_kwargs is not None else self.rnd_kwargs) if self.risk_model.use_rnd else None
-        )
-        self.policy_kwargs = kwargs
-
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
-        if self.policy.rnd is not None:
-            # The RND predictor trains first at the end of each rollout, before user callbacks run.
-            # SB3 builds and initializes the list once, so each user callback is initialized once.
-            if callback is None:
-                callback = []
-            elif not isinstance(callback, list):
-                callback = [callback if isinstance(callback, BaseCallback) else ConvertCallback(callback)]
-            callback = [RNDTrainingCallback(), *callback]
+        if self.policy.rnd is not None:  # the RND predictor trains first at the end of each rollout
+            callback = with_rnd_training(callback)
         return super()._init_callback(callback, progress_bar)
 
     def _setup_learn(self, total_timesteps: int, *args: Any, **kwargs: Any) -> tuple[int, BaseCallback]:
-        if self.risk_model.use_iqr and self.env is not None and not _normalizes_rewards(self.env):
-            warnings.warn(
-                f"HuRiPPO's IQR thresholds {self.risk_model.iqr_thresholds} are in units of normalized "
-                "returns, but the env does not normalize its rewards: wrap it with "
-                "VecNormalize(env, norm_reward=True) (RL Zoo: `normalize: true`), or set iqr_thresholds for "
-                "your return scale and silence this UnnormalizedRewardWarning",
-                UnnormalizedRewardWarning,
-                stacklevel=4,
-            )
+        if self.risk_model.use_iqr and self.env is not None:
+            warn_unless_rewards_normalized(self.env, self.risk_model.iqr_thresholds)
         return super()._setup_learn(total_timesteps, *args, **kwargs)
 
     def set_parameters(
@@ -333,19 +269,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         exact_match: bool = True,
         device: th.device | str = "auto",
     ) -> None:
-        """SB3's, and a model saved with one learning rate also loads with ``critic_learning_rate``: its
-        optimizer state (one parameter group) cannot fill the actor and critic groups, so Adam starts afresh
-        (with a warning)."""
+        """SB3's, and a model saved with one learning rate also loads with ``critic_learning_rate``, its Adam
+        state dropped (``sb3_huri.huri.saves.fitting_optimizer_state``)."""
         if isinstance(load_path_or_dict, dict) and self.policy.critic_param_group:
-            saved = load_path_or_dict.get("policy.optimizer")
-            if saved is not None and len(saved["param_groups"]) != len(self.policy.optimizer.param_groups):
-                warnings.warn(
-                    "the saved model learned with one learning rate; with critic_learning_rate its optimizer "
-                    "has actor and critic groups: the saved Adam moments are dropped, the weights are kept",
-                    stacklevel=3,
-                )
-                load_path_or_dict = {k: v for k, v in load_path_or_dict.items() if k != "policy.optimizer"}
-                exact_match = False
+            fitting = fitting_optimizer_state(load_path_or_dict, self.policy.optimizer)
+            exact_match = exact_match and fitting is load_path_or_dict
+            load_path_or_dict = fitting
         super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
 
     def _excluded_save_params(self) -> list[str]:
@@ -430,12 +359,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         in one batch. The RND input statistics are updated with the rollout before its novelty is measured.
         """
         n_rollout = buffer.buffer_size * buffer.n_envs
-        extra_obs = [last_obs] + [_add_batch_axis(obs) for _, _, obs in time_outs]
+        extra_obs = [last_obs] + [add_batch_axis(obs) for _, _, obs in time_outs]
         with th.no_grad():
-            extra = obs_as_tensor(_concatenate_observations(extra_obs), self.device)
+            extra = obs_as_tensor(concatenate_observations(extra_obs), self.device)
             rollout_atoms = th.as_tensor(buffer.atoms, device=self.device).reshape(n_rollout, -1)
             if self.risk_model.adapts_band:  # the rollout's states move the band before they are read
-                self._move_band(_to_numpy(interquartile_range(rollout_atoms)))
+                self._move_band(to_numpy(interquartile_range(rollout_atoms)))
             outputs = th.cat((rollout_atoms, self.policy.predict_values(extra)))
             critic_inputs = None
             if self.policy.rnd is not None:
@@ -445,7 +374,7 @@ class HuRiPPO(OnPolicyAlgorithm):
                 critic_inputs = th.cat((rollout_inputs, self.policy.critic_features(extra)))
             assessed = self._assess(outputs, critic_inputs)
 
-        rollout = RiskReading(*(_to_numpy(tensor[:n_rollout]) for tensor in assessed))
+        rollout = RiskReading(*(to_numpy(tensor[:n_rollout]) for tensor in assessed))
         shape = (buffer.buffer_size, buffer.n_envs)
         buffer.set_risk(
             rollout.weights.reshape(*shape, -1),
@@ -458,12 +387,12 @@ class HuRiPPO(OnPolicyAlgorithm):
             steps, envs = np.array([t[0] for t in time_outs]), np.array([t[1] for t in time_outs])
             first = n_rollout + n_last
             buffer.set_time_out_bootstrap(
-                steps, envs, _to_numpy(assessed.atoms[first:]), _to_numpy(assessed.value[first:])
+                steps, envs, to_numpy(assessed.atoms[first:]), to_numpy(assessed.value[first:])
             )
         buffer.compute_returns_and_advantage(
             last_values=assessed.value[n_rollout : n_rollout + n_last],
             dones=dones,
-            last_atoms=_to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
+            last_atoms=to_numpy(assessed.atoms[n_rollout : n_rollout + n_last]),
         )
         if self.risk_model.distributional:
             for key, value in self.risk_model.rollout_metrics(rollout).items():
@@ -485,16 +414,10 @@ class HuRiPPO(OnPolicyAlgorithm):
         """
         obs_tensor, vectorized = self.policy.obs_to_tensor(observation)
         with th.no_grad():
-            rnd = self.policy.rnd
-            assessed = self._assess(
-                self.policy.predict_values(obs_tensor),
-                self.policy.critic_features(obs_tensor) if rnd is not None else None,
-            )
-        fields = (
-            assessed.atoms, assessed.value, assessed.risk, assessed.iqr, assessed.rnd_error,
-            assessed.risk_iqr, assessed.risk_rnd,
-        )  # fmt: skip
-        return RiskAssessment(*(_to_numpy(t) if vectorized else _to_numpy(t)[0] for t in fields))
+            critic_inputs = self.policy.critic_features(obs_tensor) if self.policy.rnd is not None else None
+            assessed = self._assess(self.policy.predict_values(obs_tensor), critic_inputs)
+        arrays = (to_numpy(getattr(assessed, name)) for name in RiskAssessment._fields)
+        return RiskAssessment(*(array if vectorized else array[0] for array in arrays))
 
     def _assess(self, outputs: th.Tensor, critic_inputs: th.Tensor | None) -> RiskReading:
         """The risk model's reading of critic outputs ``(B, n_quantiles)`` (:meth:`RiskModel.assess`), with
@@ -512,13 +435,12 @@ class HuRiPPO(OnPolicyAlgorithm):
         With ``desired_kl`` the learning rate adapts to each minibatch's approximate KL before its step.
         """
         self.policy.set_training_mode(True)
+        progress = self._current_progress_remaining
         if self.desired_kl is None:
-            self._set_learning_rates(self.lr_schedule(self._current_progress_remaining))
+            self._set_learning_rates(self.lr_schedule(progress))
         else:  # starts from the schedule's value, then carries over from update to update
-            self._set_kl_learning_rate(
-                self.kl_learning_rate or self.lr_schedule(self._current_progress_remaining)
-            )
-        clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
+            self._set_kl_learning_rate(self.kl_learning_rate or self.lr_schedule(progress))
+        clip_range = self.clip_range(progress)  # type: ignore[operator]
         self._mirrors = self.mirror_maps() if self.mirror_coef > 0 else None
         logs: dict[str, list[float]] = defaultdict(list)
         approx_kl_divs: list[float] = []
@@ -562,10 +484,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.logger.record("train/approx_kl", np.mean(approx_kl_divs))
         self.logger.record("train/clip_fraction", np.mean(logs["clip"]))
         self.logger.record("train/loss", loss.item())
-        buffer = self.rollout_buffer
-        self.logger.record(
-            "train/explained_variance", explained_variance(buffer.values.flatten(), buffer.returns.flatten())
-        )
+        values, returns = self.rollout_buffer.values.flatten(), self.rollout_buffer.returns.flatten()
+        self.logger.record("train/explained_variance", explained_variance(values, returns))
         if hasattr(self.policy, "log_std"):
             self.logger.record("train/std", th.exp(self.policy.log_std).mean().item())
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
@@ -574,9 +494,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             # The rate rises and falls within an update (the KL is ~0 at its first minibatch): its mean.
             self.logger.record("train/learning_rate", float(np.mean(actor_rates or [self.kl_learning_rate])))
         if self.critic_lr_schedule is not None:
-            self.logger.record(
-                "train/critic_learning_rate", self.critic_lr_schedule(self._current_progress_remaining)
-            )
+            self.logger.record("train/critic_learning_rate", self.critic_lr_schedule(progress))
 
     def _minibatch_loss(
         self, data: HuRiRolloutBufferSamples, clip_range: float, logs: dict[str, list]
@@ -614,44 +532,6 @@ class HuRiPPO(OnPolicyAlgorithm):
             approx_kl_div = th.mean((ratio - 1) - log_ratio).item()
         return loss, approx_kl_div
 
-    @classmethod
-    def load(cls: type[SelfHuRiPPO], path: Any, env: GymEnv | None = None, **kwargs: Any) -> SelfHuRiPPO:
-        """SB3's ``load``. Hyperparameters passed in `kwargs` replace the saved ones (as in SB3, and as
-        ``rl_zoo3 train -i`` continues a trained agent with its preset's); they are checked as the
-        constructor checks them, and a ValueError names the first invalid one. A model saved before
-        ``variant`` became ``method`` loads with its method under today's name (``method_of_saved``)."""
-        model = super().load(path, env, **kwargs)
-        model._check_settings()
-        return model
-
-    def mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
-        """The env's mirror of the actor's observation, in the units the normalizer gives the actor (its
-        statistics now), and its mirror of the action; ValueError if the env has none."""
-        try:
-            observation, action = (
-                self.env.get_attr(name, [0])[0] for name in ("policy_mirror", "action_mirror")
-            )
-        except AttributeError as error:
-            raise ValueError(
-                "mirror_coef > 0 needs an env with `policy_mirror` and `action_mirror` maps of the actor's "
-                "observation and of the action (Zerith1-v0 has them: zerith_gym.symmetry)"
-            ) from error
-        is_dict = isinstance(self.observation_space, spaces.Dict)
-        if is_dict and ACTOR_KEY not in self.observation_space.spaces:
-            raise ValueError(f"mirror_coef > 0 needs the actor's own {ACTOR_KEY!r} observation entry")
-        mean = std = None
-        normalizer = self.get_vec_normalize_env()
-        if normalizer is not None and normalizer.norm_obs:
-            if not is_dict:
-                mean, std = normalizer.obs_rms.mean, np.sqrt(normalizer.obs_rms.var + normalizer.epsilon)
-            elif ACTOR_KEY in normalizer.norm_obs_keys:
-                stats = normalizer.obs_rms[ACTOR_KEY]
-                mean, std = stats.mean, np.sqrt(stats.var + normalizer.epsilon)
-        return (
-            NormalizedMirror.build(observation, mean, std, self.device),
-            NormalizedMirror.build(action, device=self.device),
-        )
-
     def _critic_loss(
         self, outputs: th.Tensor, data: HuRiRolloutBufferSamples, logs: dict[str, list]
     ) -> th.Tensor:
@@ -669,13 +549,11 @@ class HuRiPPO(OnPolicyAlgorithm):
         return self.quantile_coef * quantile_loss + self.expectation_coef * mean_loss
 
     def _adapt_learning_rate(self, approx_kl: float) -> None:
-        """KL-adaptive step: a smaller learning rate when the policy moved too far, larger when too little."""
+        """KL-adaptive step: a smaller learning rate when the policy moved too far, larger when too little
+        (:func:`~sb3_huri.common.learning_rate.kl_adaptive_rate`)."""
         assert self.desired_kl is not None and self.kl_learning_rate is not None
-        low, high = self.kl_learning_rate_bounds
-        if approx_kl > 2.0 * self.desired_kl:
-            self._set_kl_learning_rate(max(self.kl_learning_rate / 1.5, low))
-        elif 0.0 < approx_kl < 0.5 * self.desired_kl:
-            self._set_kl_learning_rate(min(self.kl_learning_rate * 1.5, high))
+        desired, bounds = self.desired_kl, self.kl_learning_rate_bounds
+        self._set_kl_learning_rate(kl_adaptive_rate(self.kl_learning_rate, approx_kl, desired, bounds))
 
     def _set_kl_learning_rate(self, learning_rate: float) -> None:
         self.kl_learning_rate = learning_rate
@@ -684,12 +562,25 @@ class HuRiPPO(OnPolicyAlgorithm):
     def _set_learning_rates(self, learning_rate: float) -> None:
         """Set the optimizer's rate: ``learning_rate`` everywhere, or on the actor with the critic's own."""
         self.logger.record("train/learning_rate", learning_rate)
-        if self.critic_lr_schedule is None:
-            update_learning_rate(self.policy.optimizer, learning_rate)
-            return
-        critic_rate = self.critic_lr_schedule(self._current_progress_remaining)
-        for group in self.policy.optimizer.param_groups:
-            group["lr"] = critic_rate if group.get("name") == "critic" else learning_rate
+        schedule = self.critic_lr_schedule
+        critic_rate = None if schedule is None else schedule(self._current_progress_remaining)
+        set_learning_rates(self.policy.optimizer, learning_rate, critic_rate)
+
+    @classmethod
+    def load(cls: type[SelfHuRiPPO], path: Any, env: GymEnv | None = None, **kwargs: Any) -> SelfHuRiPPO:
+        """SB3's ``load``. Hyperparameters passed in `kwargs` replace the saved ones (as in SB3, and as
+        ``rl_zoo3 train -i`` continues a trained agent with its preset's); they are checked as the
+        constructor checks them, and a ValueError names the first invalid one. A model saved by an earlier
+        version loads with its settings under today's names (``sb3_huri.huri.saves``)."""
+        model = super().load(path, env, **kwargs)
+        model._check_settings()
+        return model
+
+    def mirror_maps(self) -> tuple[NormalizedMirror, NormalizedMirror]:
+        """The env's mirror of the actor's observation, in the units the normalizer gives the actor (its
+        statistics now), and its mirror of the action; ValueError if the env has none."""
+        normalizer = self.get_vec_normalize_env()
+        return env_mirrors(self.env, self.observation_space, normalizer, ACTOR_KEY, self.device)
 
     def learn(
         self: SelfHuRiPPO,
@@ -708,87 +599,3 @@ class HuRiPPO(OnPolicyAlgorithm):
             reset_num_timesteps=reset_num_timesteps,
             progress_bar=progress_bar,
         )
-
-
-def _to_numpy(tensor: th.Tensor) -> np.ndarray:
-    return tensor.detach().cpu().numpy()
-
-
-def _add_batch_axis(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray | dict[str, np.ndarray]:
-    if isinstance(obs, dict):
-        return {key: np.asarray(value)[None] for key, value in obs.items()}
-    return np.asarray(obs)[None]
-
-
-def _concatenate_observations(batches: list[Any]) -> np.ndarray | dict[str, np.ndarray]:
-    if isinstance(batches[0], dict):
-        return {key: np.concatenate([batch[key] for batch in batches]) for key in batches[0]}
-    return np.concatenate(batches)
-
-
-def _normalizes_rewards(env: VecEnv) -> bool:
-    """Whether the env scales its rewards: ``VecNormalize(norm_reward=True)`` or ``NormalizeReward``."""
-    normalizer = unwrap_vec_normalize(env)
-    if normalizer is not None and normalizer.norm_reward:
-        return True
-    try:
-        return any(env.env_is_wrapped(NormalizeReward))
-    except (AttributeError, NotImplementedError):
-        return False
-
-
-def _agreeing(name: str, value: Any, policy_kwargs: dict[str, Any], default: Any) -> Any:
-    """An argument ``policy_kwargs`` may carry too: the given value, else the carried one, else default."""
-    carried = policy_kwargs.get(name)
-    if value is not None and carried is not None and carried != value:
-        raise ValueError(
-            f"{name}={value!r} conflicts with policy_kwargs['{name}']={carried!r}: pass one of them"
-        )
-    return next((v for v in (value, carried) if v is not None), default)
-
-
-_RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
-    "n_steps": (lambda v: v >= 1, "an integer >= 1"),
-    "n_epochs": (lambda v: v >= 1, "an integer >= 1"),
-    "n_minibatches": (lambda v: v >= 1, "an integer >= 1"),
-    "gamma": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
-    "gae_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
-    "sr_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
-    "quantile_coef": (lambda v: v >= 0.0, ">= 0"),
-    "expectation_coef": (lambda v: v >= 0.0, ">= 0"),
-    "mirror_coef": (lambda v: v >= 0.0, ">= 0"),
-    "expectation_loss": (lambda v: v in EXPECTATION_LOSSES, f"one of {EXPECTATION_LOSSES}"),
-    "desired_kl": (lambda v: v is None or v > 0.0, "None or > 0"),
-    "critic_learning_rate": (
-        lambda v: v is None or callable(v) or (isinstance(v, int | float) and v > 0.0),
-        "None, a float > 0 or a schedule",
-    ),
-}
-"""Allowed values of the hyperparameters :func:`_check_hyperparameters` checks, and how to say so."""
-
-
-def _check_hyperparameters(**values: Any) -> None:
-    """Raise a ValueError naming the first invalid hyperparameter and its allowed values."""
-    for name, value in values.items():
-        valid, allowed = _RULES[name]
-        if not valid(value):
-            raise ValueError(f"{name} must be {allowed}, got {value!r}")
-
-
-def _resolve_batch_size(batch_size: int | None, n_minibatches: int, rollout_size: int) -> int:
-    """The minibatch size: given, or the rollout split into ``n_minibatches``; checked against the rollout."""
-    if batch_size is None:
-        if n_minibatches > rollout_size:
-            raise ValueError(
-                f"n_minibatches must be at most n_steps * n_envs = {rollout_size}, got {n_minibatches}"
-            )
-        return -(-rollout_size // n_minibatches)
-    if not 1 < batch_size <= rollout_size:
-        raise ValueError(f"batch_size must be in [2, n_steps * n_envs = {rollout_size}], got {batch_size}")
-    if rollout_size % batch_size:
-        warnings.warn(
-            f"batch_size={batch_size} does not divide the rollout size n_steps * n_envs = {rollout_size}: "
-            f"each epoch ends with a minibatch of {rollout_size % batch_size} samples",
-            stacklevel=3,
-        )
-    return batch_size

@@ -17,21 +17,23 @@ from __future__ import annotations
 
 import functools
 import os
-from pathlib import Path
 from typing import Any
 
 from sb3_huri.huri import methods as _methods
-from sb3_huri.zoo.runs import load_checkpoint as load_checkpoint
-from sb3_huri.zoo.runs import load_run as load_run
-from sb3_huri.zoo.runs import next_run_folder as next_run_folder
-from sb3_huri.zoo.runs import save_run as save_run
+from sb3_huri.zoo.presets import PRESETS_FILE, algorithm_kwargs, normalize_kwargs, read_preset
+
+__all__ = [
+    "METHODS",
+    "PRESETS_FILE",
+    "algorithm_kwargs",
+    "method_class",
+    "normalize_kwargs",
+    "read_preset",
+    "register",
+]
 
 METHODS: tuple[str, ...] = tuple(_methods.METHODS)
 """The methods, each an RL Zoo algorithm of its name (``HuRiPPO``'s ``method``, ``sb3_huri.huri.methods``)."""
-
-# The presets shipped inside the package (``sb3_huri/zoo/hyperparams`` links to the repository's
-# ``hyperparams`` folder, as ``rl_zoo3/hyperparams`` does in RL Zoo).
-PRESETS_FILE = Path(__file__).parent / "hyperparams" / "huri.yml"
 
 
 def register() -> None:
@@ -89,29 +91,11 @@ def use_packaged_hyperparameters() -> None:
     ExperimentManager.__init__ = __init__  # type: ignore[method-assign]
 
 
-ZERITH_ENTRY_POINT = "zerith_gym.envs.zerith1:Zerith1Env"
-ROBOT_ENTRY_POINTS = {ZERITH_ENTRY_POINT: "zerith1", "zerith_gym.envs.go2like:Go2LikeEnv": "go2like"}
-"""The entry points of the envs `zerith_gym.make_vec_env` batches, and the robot of each."""
-
-
-def robot_of(env_id: str) -> str:
-    """The robot (`zerith_gym.make_vec_env`'s `robot` option) of a registered Zerith env id; ValueError for an
-    env id that is not one."""
-    import gymnasium as gym
-
-    import zerith_gym  # noqa: F401  (registers the env ids)
-
-    entry_point = gym.spec(env_id).entry_point
-    if entry_point not in ROBOT_ENTRY_POINTS:
-        raise ValueError(f"{env_id} is not a Zerith env (Zerith1-v0, Go2Like-v0)")
-    return ROBOT_ENTRY_POINTS[entry_point]
-
-
 def use_batched_zerith_env() -> None:
     """Let ``rl_zoo3 train`` step Zerith robots with ``zerith_gym.make_vec_env`` (a slice of robots per
     core) instead of RL Zoo's ``DummyVecEnv`` of one env per robot: several times faster, same transitions.
 
-    It applies to envs registered with an entry point of ``ROBOT_ENTRY_POINTS`` (``Zerith1-v0``,
+    It applies to envs registered with an entry point of ``zerith_gym.ROBOT_ENTRY_POINTS`` (``Zerith1-v0``,
     ``Go2Like-v0``), with RL Zoo's default ``--vec-env
     dummy`` and no ``env_wrapper``, ``vec_env_wrapper`` or ``frame_stack``; anything else takes RL Zoo's own
     path. Robot i is seeded ``seed + i`` as RL Zoo seeds env i, episodes go to one ``0.monitor.csv`` in the
@@ -131,6 +115,7 @@ def use_batched_zerith_env() -> None:
         from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 
         import zerith_gym
+        from zerith_gym import ROBOT_ENTRY_POINTS
 
         plain = self.env_wrapper is None and self.vec_env_wrapper is None and self.frame_stack is None
         spec = gym.spec(self.env_name.gym_id)
@@ -177,37 +162,3 @@ def method_class(method: str) -> type:
         (HuRiPPO,),
         {"__init__": __init__, "__module__": __name__, "__doc__": f"HuRiPPO(method={method!r})."},
     )
-
-
-ZOO_ONLY_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback", "frame_stack")
-"""Preset entries RL Zoo reads itself; the others are the algorithm's keyword arguments."""
-
-
-def read_preset(env_id: str, path: str | os.PathLike | None = None) -> dict[str, Any]:
-    """The preset of `env_id` in an RL Zoo hyperparameter file (default: the packaged ``huri.yml``)."""
-    import yaml
-
-    path = Path(path or PRESETS_FILE)
-    with open(path) as f:
-        presets = yaml.safe_load(f)
-    if env_id not in presets:
-        raise ValueError(f"{path} has no preset for {env_id!r}; presets: {', '.join(presets)}")
-    return dict(presets[env_id])
-
-
-def algorithm_kwargs(preset: dict[str, Any]) -> dict[str, Any]:
-    """The algorithm's keyword arguments of a preset, with ``policy_kwargs`` evaluated as RL Zoo does."""
-    import torch as th
-
-    kwargs = {k: v for k, v in preset.items() if k not in ZOO_ONLY_KEYS}
-    if isinstance(kwargs.get("policy_kwargs"), str):
-        kwargs["policy_kwargs"] = eval(kwargs["policy_kwargs"], {"nn": th.nn, "th": th})
-    return kwargs
-
-
-def normalize_kwargs(preset: dict[str, Any]) -> dict[str, Any] | None:
-    """``VecNormalize`` keyword arguments of a preset's ``normalize`` entry (None: no normalization)."""
-    value = preset.get("normalize", False)
-    if isinstance(value, str):
-        return eval(value)
-    return {} if value else None

@@ -1,76 +1,50 @@
-"""Training from an RL Zoo preset outside RL Zoo: the preset's batched env with its normalizer, and its model.
+"""RL Zoo presets: the hyperparameter files ``rl_zoo3 train -conf`` reads, and what each entry means.
 
-`examples/train_zerith.py`, the experiment grid (`sb3_huri.experiments`) and the benchmarks build what
-`rl_zoo3 train` builds from the same preset, through these two functions.
+A preset is one env's entry of an RL Zoo hyperparameter file (``hyperparams/*.yml``): the entries RL Zoo
+reads itself (``ZOO_ONLY_KEYS``: robots, steps, policy, normalization, env options, callbacks) and the
+algorithm's keyword arguments. ``sb3_huri.runner`` builds what ``rl_zoo3 train`` builds from the same preset.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
-from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs
+# The presets shipped inside the package (``sb3_huri/zoo/hyperparams`` links to the repository's
+# ``hyperparams`` folder, as ``rl_zoo3/hyperparams`` does in RL Zoo).
+PRESETS_FILE = Path(__file__).parent / "hyperparams" / "huri.yml"
 
 
-def preset_env(
-    preset: dict[str, Any],
-    *,
-    seed: int,
-    n_envs: int | None = None,
-    normalizer: str | os.PathLike | None = None,
-    **env_options: Any,
-) -> Any:
-    """The preset's batched Zerith env, wrapped in its `VecNormalize` if the preset normalizes.
-
-    `n_envs` robots (default: the preset's), seeded `seed + i`, with the preset's `env_kwargs` updated by
-    `env_options` (`scenario`, `workers`, `backend`, ...). `normalizer`: a saved `vecnormalize.pkl` to go on
-    with (a resumed run); otherwise a new normalizer with the preset's settings and discount.
-    """
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    import zerith_gym
-
-    env_kwargs = {**(preset.get("env_kwargs") or {}), **env_options}
-    env = zerith_gym.make_vec_env(int(n_envs or preset["n_envs"]), seed=seed, **env_kwargs)
-    norm = normalize_kwargs(preset)
-    if norm is None:
-        return env
-    if normalizer is not None:
-        return VecNormalize.load(str(normalizer), env)
-    return VecNormalize(env, gamma=preset.get("gamma", 0.99), **norm)
+ZOO_ONLY_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "callback", "frame_stack")
+"""Preset entries RL Zoo reads itself; the others are the algorithm's keyword arguments."""
 
 
-def preset_model(
-    preset: dict[str, Any], env: Any, *, method: str = "huri", seed: int = 0, **overrides: Any
-) -> Any:
-    """A new `HuRiPPO` of `method` (an RL Zoo algorithm name, `sb3_huri.zoo.METHODS`) with the preset's
-    hyperparameters, any of them replaced by `overrides` (also `device`, `verbose`, `tensorboard_log`)."""
-    from sb3_huri import HuRiPPO
+def read_preset(env_id: str, path: str | os.PathLike | None = None) -> dict[str, Any]:
+    """The preset of `env_id` in an RL Zoo hyperparameter file (default: the packaged ``huri.yml``)."""
+    import yaml
 
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
-    kwargs = {**algorithm_kwargs(preset), **overrides}
-    return HuRiPPO(preset["policy"], env, method=method, seed=seed, **kwargs)
-
-
-FIXED_BY_WEIGHTS = ("policy", "policy_kwargs", "n_quantiles")
-"""Preset entries a checkpoint's network weights fix: a resumed run cannot change them."""
+    path = Path(path or PRESETS_FILE)
+    with open(path) as f:
+        presets = yaml.safe_load(f)
+    if env_id not in presets:
+        raise ValueError(f"{path} has no preset for {env_id!r}; presets: {', '.join(presets)}")
+    return dict(presets[env_id])
 
 
-def resume_overrides(saved: dict[str, Any], preset: dict[str, Any]) -> dict[str, Any]:
-    """The algorithm hyperparameters `preset` sets differently from the `saved` preset a run trained with:
-    what its model is loaded with when it resumes under `preset` (as ``rl_zoo3 train -i`` continues a
-    trained agent with its preset's). Entries `preset` leaves out keep their saved values. ValueError if
-    a change touches the networks (`FIXED_BY_WEIGHTS`)."""
-    old, new = algorithm_kwargs(saved), algorithm_kwargs(preset)
+def algorithm_kwargs(preset: dict[str, Any]) -> dict[str, Any]:
+    """The algorithm's keyword arguments of a preset, with ``policy_kwargs`` evaluated as RL Zoo does."""
+    import torch as th
 
-    def changes(key: str) -> bool:  # policy_kwargs compared as evaluated, not as written
-        return saved.get(key) != preset[key] if key == "policy" else old.get(key) != new.get(key)
+    kwargs = {k: v for k, v in preset.items() if k not in ZOO_ONLY_KEYS}
+    if isinstance(kwargs.get("policy_kwargs"), str):
+        kwargs["policy_kwargs"] = eval(kwargs["policy_kwargs"], {"nn": th.nn, "th": th})
+    return kwargs
 
-    fixed = [key for key in FIXED_BY_WEIGHTS if key in preset and changes(key)]
-    if fixed:
-        raise ValueError(
-            f"a resumed run keeps its networks: {', '.join(fixed)} cannot change from the saved preset "
-            f"({', '.join(f'{key}={saved.get(key)!r}' for key in fixed)}); start a new run instead"
-        )
-    return {key: value for key, value in new.items() if key not in old or old[key] != value}
+
+def normalize_kwargs(preset: dict[str, Any]) -> dict[str, Any] | None:
+    """``VecNormalize`` keyword arguments of a preset's ``normalize`` entry (None: no normalization)."""
+    value = preset.get("normalize", False)
+    if isinstance(value, str):
+        return eval(value)
+    return {} if value else None

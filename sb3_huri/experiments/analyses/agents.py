@@ -2,7 +2,7 @@
 
 ``evaluate_agents`` re-evaluates run folders (RL Zoo's layout: ``Zerith1-v0.zip``,
 ``Zerith1-v0/vecnormalize.pkl``) on cases ``scenario@vx`` or ``scenario``: survival with its 95% Wilson
-interval, velocity tracking and gait (``sb3_huri.experiments.evaluation.evaluate``, deterministic
+interval, velocity tracking and gait (``sb3_huri.runner.evaluation.evaluate``, deterministic
 policies, robot i seeded ``seed + i`` so that every agent meets the same conditions).
 
 ``compare_agents`` runs two agents on the same robots, forces and commands and pairs their outcomes: per
@@ -24,14 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import (
-    TABLE1_SCENARIOS,
-    evaluate,
-    parse_case,
-)
-from sb3_huri.experiments.robustness import ENV_ID
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
-from sb3_huri.zoo import load_run
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate, parse_case
+from sb3_huri.runner.folder import load_run
+from zerith_gym import ZERITH1_ID
 
 COMPARED_CASES = (*TABLE1_SCENARIOS, "side-impact", "nominal@1.0")
 """The cases two agents are compared on by default: Table 1, the side impact and the plane at 1 m/s."""
@@ -80,7 +76,7 @@ def evaluate_agents(
     results: list[CaseResult] = []
     print(f"{'agent':<28} {'case':<22} " + " ".join(f"{c:>7}" for c in RESULT_COLUMNS))
     for folder in agents:
-        model, normalizer = load_run(folder, ENV_ID)
+        model, normalizer = load_run(folder, ZERITH1_ID)
         agent = f"{folder.parent.name}/{folder.name}"
         for case, scenario, command in parsed:
             metrics = evaluate(
@@ -96,7 +92,7 @@ def evaluate_agents(
 
 def survivals(folder: Path, cases: Sequence[str], episodes: int, seed: int) -> Outcomes:
     """Each case's (robots,) survival outcomes and mean forward velocity for the agent in ``folder``."""
-    model, normalizer = load_run(folder, ENV_ID)
+    model, normalizer = load_run(folder, ZERITH1_ID)
     outcomes = {}
     for case in cases:
         scenario, command = parse_case(case)

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import evaluate, parse_case
+from sb3_huri.runner.evaluation import evaluate, parse_case
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 
 FRICTION_BINS = (0.1, 0.3, 0.55, 1.0, 1.5, 2.0)

@@ -23,7 +23,7 @@ stored under the reading that names only what changes them (``Reading.canonical`
 (the same domain draws at every scale; the same forces in a case, scale and reading; per body, the first
 hand or foot gets the force it gets under one vector per pair), so two agents' outcomes pair robot by robot;
 the default seed, 2000, makes them the first robots of the campaign's final evaluations. Each robot runs one
-20-s episode at 1 m/s with the deterministic policy (``sb3_huri.experiments.evaluation.evaluate``).
+20-s episode at 1 m/s with the deterministic policy (``sb3_huri.runner.evaluation.evaluate``).
 
 **Results.** ``<run>/evaluations/<steps>-force_magnitude.json``: per canonical reading, case and scale each
 robot's fall step (null: no fall), written (atomically) after each case and scale; a later call with the same
@@ -56,10 +56,12 @@ from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.campaign.queue import ENV_ID, EVALUATIONS
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate
-from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json, resumed_record
-from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval, wilson_interval
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate
+from sb3_huri.runner.files import read_json, resumed_record, write_json
+from sb3_huri.runner.record import EVALUATIONS
+from zerith_gym import ZERITH1_ID
 from zerith_gym.disturbances import ForceSchedule
 from zerith_gym.randomization import NOMINAL, RandomizationRanges
 from zerith_gym.robot import CONTROL_DT
@@ -176,20 +178,6 @@ def stressed(case: str, scale: float, reading: Reading = HEADLINE) -> Scenario:
     return replace(scenario, name=f"{case}x{scale:g}[{reading.key}]", randomization=ranges, force=force)
 
 
-def magnitude_label(case: str, scale: float) -> str:
-    """What ``case`` is at ``scale``, in physical units (its largest force, and its load and friction)."""
-    schedule = _schedule(case)
-    low, high = (scale * value for value in schedule.magnitude)
-    force = f"{low:.0f}-{high:.0f} N"
-    if case in FIG4_CASES:
-        ranges = scaled_robot(SCENARIOS[case].randomization, scale)
-        if ranges.added_mass != NOMINAL.added_mass:
-            force += f", {ranges.added_mass[0]:+.1f} to {ranges.added_mass[1]:+.1f} kg"
-        if ranges.friction != NOMINAL.friction:
-            force += f", friction {ranges.friction[0]:.2f}-{ranges.friction[1]:.2f}"
-    return force
-
-
 # ------------------------------------------------------------------------------------------ the checkpoint
 def result_path(run: Path, steps: int) -> Path:
     """The measurements file of the run's checkpoint at ``steps``."""
@@ -215,7 +203,7 @@ def _git(run: Path, *args: str, out: Any = subprocess.PIPE) -> subprocess.Comple
         return None
 
 
-def history_commit(run: Path, steps: int, env_id: str = ENV_ID) -> str | None:
+def history_commit(run: Path, steps: int, env_id: str = ZERITH1_ID) -> str | None:
     """The newest commit whose copy of the run's ``state.json`` names ``steps``: it holds the run's model and
     statistics of that step. None without git or such a commit."""
     state = f"{env_id}/state.json"
@@ -230,12 +218,12 @@ def history_commit(run: Path, steps: int, env_id: str = ENV_ID) -> str | None:
 
 @contextlib.contextmanager
 def checkpoint_files(
-    run: Path, steps: int, env_id: str = ENV_ID
+    run: Path, steps: int, env_id: str = ZERITH1_ID
 ) -> Iterator[tuple[int, Path, Path | None, str]]:
     """The run's model at ``steps`` copied into a temporary folder (a run training on replaces its newest
     model): (steps measured, model file, normalizer file or None, where it came from). See the module
     docstring for the order of the sources; ExperimentError if the run holds no model at all."""
-    from sb3_huri.experiments.campaign.final_evaluation import saved_models
+    from sb3_huri.runner.folder import saved_models
 
     run = Path(run)
     with tempfile.TemporaryDirectory(prefix="force_magnitude_") as folder:
@@ -276,7 +264,7 @@ def new_record(
 ) -> dict[str, Any]:
     """A new file's contents: what was measured and how, and no measurement yet."""
     return {
-        "env_id": ENV_ID,
+        "env_id": ZERITH1_ID,
         "steps": steps,
         "evaluated_steps": evaluated,
         "model": source,
@@ -331,7 +319,7 @@ def measure_agent(
     measured yet; return its file's path. ``robots`` episodes per case and scale, robot i seeded ``seed + i``;
     ``episode_steps``: the time limit (default the env's, 20 s). A file of other settings is refused
     (ExperimentError) rather than overwritten."""
-    from sb3_huri.zoo import load_checkpoint
+    from sb3_huri.runner.folder import load_checkpoint
     from zerith_gym.task import EPISODE_STEPS
 
     for case in cases:
@@ -359,7 +347,7 @@ def measure_agent(
         record["measurements"].setdefault(reading.key, {}).setdefault(case, {})[scale_key(scale)] = cell
         record["eval_s"] += time.process_time() - began
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(path, record)
+        write_json(path, record)
         print(f"  {reading.key:<22} {case:<20} x{scale:<5g} survive {result['survive']:.3f}", flush=True)
     return path
 
@@ -451,42 +439,6 @@ def table1_difference(
     mean, half, _ = mean_ci((a - b).tolist())
     half = 0.0 if not math.isfinite(half) else half
     return mean, mean - half, mean + half
-
-
-def share_text(alive: np.ndarray) -> str:
-    """A survival share with its 95% Wilson interval."""
-    low, high = wilson_interval(float(alive.mean()), alive.size)
-    return f"{alive.mean():.2f} [{low:.2f}, {high:.2f}]"
-
-
-# ---------------------------------------------------------------------------------------- the campaign's
-@dataclass(frozen=True)
-class Agent:
-    """An evaluated Zerith-1 agent of the campaign: a run at the step of its final evaluation."""
-
-    names: tuple[str, ...]
-    """The queue's entries evaluated at this checkpoint."""
-    run: Path
-    steps: int
-    paired: bool
-    """Whether its evaluation pairs with another method's (``results.evaluations.pairs``)."""
-
-
-def campaign_agents(queue_path: Path) -> list[Agent]:
-    """Every evaluated Zerith-1 agent of the queue (entries of env Zerith1-v0 with an ``evaluations/<steps>
-    .json``), each checkpoint once, in queue order."""
-    from sb3_huri.experiments.campaign.queue import load_queue
-    from sb3_huri.experiments.campaign.results.evaluations import load_evaluations, pairs
-
-    evaluations = load_evaluations([e for e in load_queue(Path(queue_path)) if e.env_id == ENV_ID])
-    paired = {id(e) for pair in pairs(evaluations) for e in pair}
-    agents: dict[tuple[Path, int], Agent] = {}
-    for e in evaluations:
-        key = (e.entry.run, e.steps)
-        known = agents.get(key)
-        names = (*known.names, e.entry.name) if known else (e.entry.name,)
-        agents[key] = Agent(names, e.entry.run, e.steps, id(e) in paired or bool(known and known.paired))
-    return list(agents.values())
 
 
 def agent_record(run: Path, steps: int) -> dict[str, Any] | None:

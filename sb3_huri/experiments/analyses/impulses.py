@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate
 from zerith_gym.disturbances import ForceSchedule
 from zerith_gym.gait import GAIT_PERIOD
 from zerith_gym.randomization import NOMINAL

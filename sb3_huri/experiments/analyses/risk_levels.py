@@ -6,7 +6,7 @@ HuRi's risk level per state is ``beta = beta_IQR + beta_RND`` (docs/huri.md, "Th
 agent (a run folder of the campaign: RL Zoo's layout, model and ``VecNormalize`` statistics) with the
 deterministic policy on a few robots per case (robot i seeded ``seed + i``: the same robots for every agent),
 one 20-s episode each, and reads every state a robot visits before its episode ends with
-``HuRiPPO.assess_risk`` (``sb3_huri.experiments.evaluation.evaluate(risk_states=True)``). Per case:
+``HuRiPPO.assess_risk`` (``sb3_huri.runner.evaluation.evaluate(risk_states=True)``). Per case:
 
 - ``below``, ``within``, ``above``: shares of the visited states whose IQR is below ``t_min``, in
   ``[t_min, t_max]`` or above ``t_max`` of the agent's own band (its thresholds as saved: fixed for the
@@ -40,14 +40,16 @@ from typing import Any
 import numpy as np
 import yaml
 
-from sb3_huri.experiments.campaign.queue import EVALUATIONS
-from sb3_huri.experiments.evaluation import PLANE_CASE, RiskStates, evaluate, parse_case
-from sb3_huri.experiments.layout import ExperimentError, atomic_write_json, read_json, resumed_record
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.evaluation import PLANE_CASE, RiskStates, evaluate, parse_case
+from sb3_huri.runner.files import read_json, resumed_record, write_json
+from sb3_huri.runner.record import EVALUATIONS
+from zerith_gym import GO2LIKE_ID, ZERITH1_ID
 from zerith_gym.scenarios import TEST_COMMAND
 
 RISK_LEVELS_SUFFIX = "-risk_levels.json"
 """A checkpoint's risk levels are in its run's ``evaluations/`` folder, in ``<steps>-risk_levels.json``."""
-ENV_IDS = ("Zerith1-v0", "Go2Like-v0")
+ENV_IDS = (ZERITH1_ID, GO2LIKE_ID)
 """The envs whose run folders this reads (the robot is the env's)."""
 ROLES = ("plane", "push", "uneven")
 """The paper's Fig. 5 conditions, in the order its risk level rises: the plane, a push, uneven ground."""
@@ -98,7 +100,7 @@ def run_env_id(run: Path) -> str:
 
 def training_scenario(run: Path, env_id: str) -> str:
     """The scenario the run trained in: its preset's ``env_kwargs.scenario``, else the robot's default."""
-    from sb3_huri.zoo import robot_of
+    from zerith_gym import robot_of
     from zerith_gym.robots import locomotion_task
 
     path = run / env_id / "config.yml"
@@ -147,7 +149,7 @@ def choose_checkpoint(run: Path, env_id: str, steps: int | None = None) -> tuple
     still holds it, else the run's newest model. ``steps`` given: the first saved model at or after it, as
     the campaign picks an entry's (``final_evaluation.find_checkpoint``). ExperimentError if there is none.
     """
-    from sb3_huri.experiments.campaign.final_evaluation import saved_models
+    from sb3_huri.runner.folder import saved_models
 
     found = saved_models(run, env_id)
     if not found:
@@ -172,7 +174,7 @@ def load_measured(run: Path, env_id: str, steps: int, model_file: Path, normaliz
     """Model and normalizer of the checkpoint at ``steps``. The run's newest model may be replaced while it is
     read (a run still training): ExperimentError unless the model holds ``steps`` steps and the run's
     state still names that step, with statistics saved no later than it."""
-    from sb3_huri.zoo import load_checkpoint
+    from sb3_huri.runner.folder import load_checkpoint
 
     model, normalizer = load_checkpoint(model_file, normalizer_file)
     if model_file == run / f"{env_id}.zip":
@@ -213,7 +215,7 @@ def measure_risk_levels(
     limit (default the env's, 20 s). Cases already in the file with the same settings are skipped; a file of
     other settings is refused (ExperimentError) rather than overwritten.
     """
-    from sb3_huri.zoo import robot_of
+    from zerith_gym import robot_of
 
     run = Path(run)
     env_id = run_env_id(run)
@@ -242,7 +244,7 @@ def measure_risk_levels(
         record["cases"][case] = {**statistics, "survive": result["survive"]}
         record["eval_s"] += time.time() - began
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(path, record)
+        write_json(path, record)
         print(f"  {case_line(case, record['cases'][case])} ({time.time() - began:.0f} s)", flush=True)
     return path
 

@@ -2,7 +2,7 @@
 
 ``update_curve`` evaluates the checkpoints of a run (``<run>/checkpoints/rl_model_<steps>_steps.zip`` and
 its normalizer, written by the trainer) at least ``every`` steps after the previous row of the curve, and
-the run's newest model, on the cases of ``sb3_huri.experiments.robustness`` (the six Table-1 scenarios,
+the run's newest model, on the cases of ``sb3_huri.runner.robustness`` (the six Table-1 scenarios,
 ``side-impact``, ``nominal@1.0`` and ``nominal@0.5``), and adds a row per checkpoint to the run's
 ``robustness.csv``. A row evaluated with another number of episodes is evaluated again where its
 checkpoint is still there, and kept as it is otherwise, so that a curve started on few robots can be
@@ -24,12 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.layout import atomic_write_text
-from sb3_huri.experiments.robustness import CASES, ENV_ID, NOMINAL, add_row, read_rows, robustness_row
 from sb3_huri.experiments.statistics import wilson_interval
-from sb3_huri.zoo import load_run
-from sb3_huri.zoo.checkpoints import RunState
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.files import write_text
+from sb3_huri.runner.folder import load_run
+from sb3_huri.runner.robustness import CASES, NOMINAL, add_row, read_rows, robustness_row
+from sb3_huri.runner.state import RunState
+from zerith_gym import ZERITH1_ID
 
 SUMMARY_FILE = "robustness.md"
 """The run's status and robustness curve in markdown, written into the run folder by ``write_summary``."""
@@ -42,8 +43,8 @@ def checkpoints(run: Path) -> dict[int, tuple[Path, Path]]:
         steps = int(re.findall(r"_(\d+)_steps", model.name)[0])
         found[steps] = (model, run / "checkpoints" / f"rl_model_vecnormalize_{steps}_steps.pkl")
     newest = RunState.read(run).timesteps
-    if newest and (run / f"{ENV_ID}.zip").is_file():
-        found[newest] = (run / f"{ENV_ID}.zip", run / ENV_ID / "vecnormalize.pkl")
+    if newest and (run / f"{ZERITH1_ID}.zip").is_file():
+        found[newest] = (run / f"{ZERITH1_ID}.zip", run / ZERITH1_ID / "vecnormalize.pkl")
     return dict(sorted(found.items()))
 
 
@@ -53,10 +54,10 @@ def evaluate_checkpoint(
     """Survival per case, the Table-1 mean and the mean forward velocity at 1 m/s of one checkpoint."""
     with tempfile.TemporaryDirectory() as folder:  # RL Zoo's layout, which load_run reads
         layout = Path(folder)
-        (layout / ENV_ID).mkdir()
-        (layout / f"{ENV_ID}.zip").symlink_to(model_file.resolve())
-        (layout / ENV_ID / "vecnormalize.pkl").symlink_to(normalizer_file.resolve())
-        model, normalizer = load_run(layout, ENV_ID)
+        (layout / ZERITH1_ID).mkdir()
+        (layout / f"{ZERITH1_ID}.zip").symlink_to(model_file.resolve())
+        (layout / ZERITH1_ID / "vecnormalize.pkl").symlink_to(normalizer_file.resolve())
+        model, normalizer = load_run(layout, ZERITH1_ID)
     return robustness_row(model, normalizer, episodes, seed)
 
 
@@ -263,5 +264,5 @@ def write_summary(run: Path) -> Path:
     run's files; returns its path."""
     path = run / SUMMARY_FILE
     body = f"# {run.name}: status and robustness curve\n\n{status_markdown(run)}\n\n"
-    atomic_write_text(path, f"{body}Robustness curve:\n\n{curve_markdown(run)}\n")
+    write_text(path, f"{body}Robustness curve:\n\n{curve_markdown(run)}\n")
     return path

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.experiments.statistics import wilson_interval
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.robustness import read_rows
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -1,9 +1,10 @@
 """The training campaign's queue: the long runs, in priority order, and how far each has come.
 
 A queue file (``runs/campaign.yml``) lists entries; each trains one run folder (RL Zoo's layout, written by
-``sb3_huri.experiments.trainer``) up to a number of steps, then evaluates that checkpoint once under the
-paper's protocol (``sb3_huri.experiments.campaign.final_evaluation``). Paths in the file are relative to
-the file's own folder. The same run folder may appear in several entries (trained to 150M, later on to 285M)::
+``sb3_huri.runner.training``) up to a number of steps, then evaluates that checkpoint once under the
+paper's protocol into its evaluation record (``sb3_huri.experiments.campaign.final_evaluation``). Paths in
+the file are relative to the file's own folder. The same run folder may appear in several entries (trained
+to 150M, later on to 285M)::
 
     defaults:                  # optional; these are the defaults
       robustness_every: 5000000  # a robustness row (Table 1 on 50 robots) every this many steps
@@ -35,9 +36,13 @@ from typing import Any
 
 import yaml
 
-from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.record import EVALUATIONS
+from sb3_huri.runner.state import RunState
+from zerith_gym import GO2LIKE_ID, ZERITH1_ID
 
-ENV_ID = "Zerith1-v0"
+DEFAULT_QUEUE = Path("runs") / "campaign.yml"
+"""The queue file the campaign's commands read unless told otherwise (relative to the working folder)."""
 PROTOCOLS = ("robust", "robust-256", "paper", "terrain", "quadruped")
 """The training protocols: the project's (train at the test magnitudes), the same with 256 robots x 64 steps
 per update instead of 32 x 512 (as many samples per update; a recipe that uses more cores, and whether it
@@ -45,9 +50,8 @@ learns per sample as the 32-robot one does), the paper's (train at its Table-5 r
 distribution), the paper's terrain training (its appendix A.7), and the paper's quadruped (its appendix
 A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms). Entries pair and average only
 within a protocol."""
-PROTOCOL_ENVS = {"quadruped": "Go2Like-v0"}
-"""The env a protocol trains on where it is not ``ENV_ID``."""
-EVALUATIONS = "evaluations"
+PROTOCOL_ENVS = {"quadruped": GO2LIKE_ID}
+"""The env a protocol trains on where it is not ``ZERITH1_ID``."""
 
 
 @dataclass(frozen=True)
@@ -81,12 +85,11 @@ class CampaignEntry:
     @property
     def env_id(self) -> str:
         """The env the entry trains on (its run folder's file names)."""
-        return PROTOCOL_ENVS.get(self.protocol, ENV_ID)
+        return PROTOCOL_ENVS.get(self.protocol, ZERITH1_ID)
 
     def trained_steps(self) -> int:
         """Steps the run folder's newest checkpoint holds (0 for a run not started)."""
-        path = self.run / self.env_id / "state.json"
-        return int(json.loads(path.read_text())["timesteps"]) if path.is_file() else 0
+        return RunState.read(self.run, self.env_id).timesteps
 
     def evaluation(self) -> Path | None:
         """The entry's final evaluation file, ``<steps>.json``, if it was written (the other analyses' files

@@ -9,7 +9,7 @@ in a child process pinned to a core of its own (two trainings of one core each t
 second on 2 cores than one training of both: ``benchmarks/bench_core_split.py``). It takes the entries in
 the queue's order, skipping those done, and never starts an entry while an earlier entry of the same run
 folder is unfinished (the folder trains to 157M and is evaluated there before it trains on). An entry
-trains with ``sb3_huri.experiments.trainer.train_run`` up to its steps, with a robustness row every
+trains with ``sb3_huri.runner.training.train_run`` up to its steps, with a robustness row every
 ``robustness_every`` steps, then is evaluated once (``final_evaluation.evaluate_entry``). Each child logs
 to ``<run>/train.log``.
 
@@ -30,10 +30,11 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from sb3_huri.experiments.campaign.queue import ENV_ID, CampaignEntry, load_queue
-from sb3_huri.experiments.layout import ExperimentError
+from sb3_huri.experiments.campaign.queue import CampaignEntry, load_queue
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.files import RunError
+from zerith_gym import ZERITH1_ID
 
-DEFAULT_QUEUE = Path("runs") / "campaign.yml"
 CHECKPOINT_FREQ = 1_000_000
 LOG_FILE = "train.log"
 TRIES = 2
@@ -47,7 +48,7 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
 
     A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued."""
     from sb3_huri.experiments.campaign.final_evaluation import evaluate_entry
-    from sb3_huri.experiments.trainer import RobustnessSchedule, RunRequest, TrainingOptions, train_run
+    from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
     from sb3_huri.zoo import read_preset
 
     if entry.state() in ("new", "train"):
@@ -64,7 +65,7 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
         )
         options = TrainingOptions(
             checkpoint_freq=CHECKPOINT_FREQ,
-            robustness=rows if entry.env_id == ENV_ID else None,  # rows are Zerith-1's Table 1
+            robustness=rows if entry.env_id == ZERITH1_ID else None,  # rows are Zerith-1's Table 1
             max_wall_s=max_wall_s, workers=workers,
         )  # fmt: skip
         train_run(request, options)
@@ -185,7 +186,7 @@ def _reread(queue: Path, entries: list[CampaignEntry]) -> tuple[list[CampaignEnt
     entries running are never left without their campaign."""
     try:
         return load_queue(queue), None
-    except ExperimentError as error:
+    except RunError as error:
         return entries, f"the queue file does not read now ({error}); going on with it as last read"
 
 
@@ -211,7 +212,7 @@ def _report_end(
 def recent_rate(run: Path, rows: int = 200) -> float | None:
     """The run's training speed over its last `rows` rollouts (env steps per second of training time, from
     ``curve.csv``), or None before it has two rows."""
-    from sb3_huri.zoo.curve import read_curve
+    from sb3_huri.runner.curve import read_curve
 
     curve = read_curve(run)[-rows:]
     if len(curve) < 2 or curve[-1]["wall_s"] <= curve[0]["wall_s"]:

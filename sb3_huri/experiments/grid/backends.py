@@ -25,8 +25,8 @@ import sys
 from collections.abc import Iterable
 from typing import Any, Protocol
 
+from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.experiments.grid.job import RunJob, RunOutcome, execute_run
-from sb3_huri.experiments.layout import ExperimentError
 
 TASK_RETRIES = 3
 """Ray retries of a run whose worker or machine died (it continues from its last checkpoint)."""

@@ -8,18 +8,19 @@ from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
+from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.experiments.grid.backends import Backend, LocalBackend, RayBackend
 from sb3_huri.experiments.grid.job import RunJob, RunOutcome, is_finished
-from sb3_huri.experiments.layout import (
+from sb3_huri.experiments.grid.layout import (
     EvalSettings,
-    ExperimentError,
     Settings,
     open_experiment,
     read_status,
     run_folder,
     validate_grid,
 )
-from sb3_huri.zoo.checkpoints import RunState
+from sb3_huri.runner.files import RunError
+from sb3_huri.runner.state import RunState
 from zerith_gym.cpu.workers import available_cores
 
 EXECUTION_BACKENDS = ("local", "ray")
@@ -143,7 +144,7 @@ class _Progress:
             try:
                 folder = run_folder(self.out, self.settings.env, task.method, task.seed)
                 status = read_status(folder, task.method, task.seed, self.settings.env)
-            except ExperimentError:
+            except RunError:
                 continue
             total = self.settings.timesteps
             now = time.time()

@@ -11,8 +11,7 @@ import traceback
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from sb3_huri.experiments.layout import (
-    ExperimentError,
+from sb3_huri.experiments.grid.layout import (
     RunBusy,
     load_settings,
     read_status,
@@ -20,6 +19,7 @@ from sb3_huri.experiments.layout import (
     run_lock,
     write_status,
 )
+from sb3_huri.runner.files import RunError
 
 
 @dataclass(frozen=True)
@@ -56,8 +56,8 @@ def execute_run(task: RunJob) -> RunOutcome:
     """
     import torch as th
 
-    from sb3_huri.experiments.evaluation import evaluate_run
-    from sb3_huri.experiments.grid.training import env_workers, train_run
+    from sb3_huri.experiments.grid.evaluation import evaluate_run
+    from sb3_huri.experiments.grid.training import env_workers, train_grid_run
 
     th.set_num_threads(1)  # small networks: one thread is fastest, and the runs share the machine
     out = Path(task.out)
@@ -70,7 +70,7 @@ def execute_run(task: RunJob) -> RunOutcome:
             try:
                 if status.trained_to is None or status.trained_to < settings.timesteps:
                     workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
-                    status = train_run(folder, status, settings, workers)
+                    status = train_grid_run(folder, status, settings, workers)
                 if status.evaluated != {**asdict(settings.eval), "trained_to": status.trained_to}:
                     workers = env_workers(task.cpus, settings.eval.episodes)
                     status = evaluate_run(folder, status, settings, workers)
@@ -85,7 +85,7 @@ def execute_run(task: RunJob) -> RunOutcome:
             )
     except RunBusy as error:
         return RunOutcome(task.method, task.seed, "busy", str(error))
-    except ExperimentError as error:
+    except RunError as error:
         return RunOutcome(task.method, task.seed, "failed", str(error))
 
 

@@ -27,28 +27,20 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.evaluation import (
-    EVALUATION_FILE,
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.experiments.grid.layout import RunStatus, Settings, load_settings, read_status, run_folder
+from sb3_huri.experiments.statistics import mean_ci
+from sb3_huri.runner.curve import final_return, read_curve
+from sb3_huri.runner.evaluation import (
     PLANE_CASE,
     RISK_CASES,
     TABLE1_SCENARIOS,
     TERRAIN_SCENARIOS,
     TRACKING_SCENARIOS,
     read_trace,
-    risk_file,
 )
-from sb3_huri.experiments.layout import (
-    ExperimentError,
-    RunStatus,
-    Settings,
-    atomic_write_text,
-    load_settings,
-    read_json,
-    read_status,
-    run_folder,
-)
-from sb3_huri.experiments.statistics import mean_ci
-from sb3_huri.zoo.curve import final_return, read_curve
+from sb3_huri.runner.files import read_json, write_text
+from sb3_huri.runner.record import PARTIAL, record_path, trace_path
 
 REPORT_FILE = "report.md"
 RETURNS_FIGURE = "returns.png"
@@ -82,16 +74,19 @@ def load_results(out: Path) -> tuple[Settings, list[RunResult]]:
     for method, seed in settings.runs:
         folder = run_folder(out, settings.env, method, seed)
         result = RunResult(method, seed, folder, read_status(folder, method, seed, settings.env))
-        if (folder / EVALUATION_FILE).exists():
-            evaluation = read_json(folder / EVALUATION_FILE, "a run's evaluation")
+        steps = result.status.checkpoint
+        record = record_path(folder, steps) if steps is not None else None
+        record = record if record is None or record.exists() else record.with_name(record.name + PARTIAL)
+        if record is not None and record.exists():
+            evaluation = read_json(record, "a run's evaluation record")
             if not isinstance(evaluation, dict) or not isinstance(evaluation.get("cases"), dict):
-                raise ExperimentError(f"{folder / EVALUATION_FILE} is corrupt; delete it to evaluate anew")
+                raise ExperimentError(f"{record} is corrupt; delete it to evaluate anew")
             result.cases = evaluation["cases"]
+            for case in RISK_CASES:
+                path = trace_path(folder, steps, case)
+                if path.exists():
+                    result.traces[case] = read_trace(path)
         result.curve = read_curve(folder)
-        for case in RISK_CASES:
-            path = risk_file(folder, case)
-            if path.exists():
-                result.traces[case] = read_trace(path)
         results.append(result)
     return settings, results
 
@@ -172,7 +167,7 @@ def write_report(out: str | Path) -> Path:
         _plot_returns(out / RETURNS_FIGURE, grouped, settings.timesteps)
         _plot_risk(out / RISK_FIGURE, grouped)
     path = out / REPORT_FILE
-    atomic_write_text(path, "\n".join(lines))
+    write_text(path, "\n".join(lines))
     return path
 
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sb3_huri.experiments.campaign.queue import ENV_ID, load_queue
+from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.results.band import band_section
 from sb3_huri.experiments.campaign.results.evaluations import load_evaluations, pairs
 from sb3_huri.experiments.campaign.results.figures import (
@@ -57,7 +57,8 @@ from sb3_huri.experiments.campaign.results.tables import (
     table1_section,
 )
 from sb3_huri.experiments.campaign.results.terrains import terrain_section
-from sb3_huri.experiments.layout import atomic_write_text
+from sb3_huri.runner.files import write_text
+from zerith_gym import ZERITH1_ID
 
 
 def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path:
@@ -66,7 +67,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
     queue_path, out = Path(queue_path).resolve(), Path(out).resolve()
     every_entry = load_queue(queue_path)
     # Zerith-1's comparison in sections 2-6; the quadruped's in section 7; every entry in the status.
-    entries = [entry for entry in every_entry if entry.env_id == ENV_ID]
+    entries = [entry for entry in every_entry if entry.env_id == ZERITH1_ID]
     quadruped = [entry for entry in every_entry if entry.protocol == "quadruped"]
     evaluations = load_evaluations(entries)
     quadruped_evaluations = load_evaluations(quadruped)
@@ -97,7 +98,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *force_magnitude_section(evaluations, figures, out),
         *band_section(every_entry, figures, out),
     ]
-    atomic_write_text(out, "\n".join(lines) + "\n")
+    write_text(out, "\n".join(lines) + "\n")
     return out
 
 

@@ -18,9 +18,9 @@ import numpy as np
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.evaluations import BASELINE, FIGURE_DPI, method_label, runs_of
 from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions, save_figure
-from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.huri import METHODS
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.runner.curve import read_curve
+from sb3_huri.runner.robustness import read_rows
 
 PERCENTILE_METHODS = tuple(name for name, preset in METHODS.items() if preset.iqr_band == "percentile")
 """The methods whose band follows the critic's own IQR."""

@@ -13,17 +13,16 @@ import numpy as np
 import yaml
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.campaign.queue import ENV_ID, CampaignEntry
+from sb3_huri.experiments.campaign.queue import CampaignEntry, load_queue
 from sb3_huri.experiments.campaign.results.markdown import (
     millions,
 )
-from sb3_huri.experiments.evaluation import (
-    PLANE_CASE,
-    TABLE1_SCENARIOS,
-)
-from sb3_huri.experiments.layout import ExperimentError, read_json
+from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.experiments.statistics import mean_ci
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.runner.curve import read_curve
+from sb3_huri.runner.evaluation import PLANE_CASE, TABLE1_SCENARIOS
+from sb3_huri.runner.files import read_json
+from zerith_gym import ZERITH1_ID
 
 BASELINE = "huri-baseline"
 """The method every other is paired against: PPO with the same networks and recipe."""
@@ -80,7 +79,7 @@ class Evaluated:
         return float(self.data["cases"].get(case, {}).get(key, math.nan))
 
 
-def rollout_size(run: Path, env_id: str = ENV_ID) -> int:
+def rollout_size(run: Path, env_id: str = ZERITH1_ID) -> int:
     """``n_envs * n_steps`` of the run's preset (``<run>/<env_id>/config.yml``); 0 if it cannot be read,
     so that only checkpoints at the very same step count as comparable."""
     path = run / env_id / "config.yml"
@@ -204,3 +203,29 @@ def smoothed_curve(run: Path, window: int = 50, column: str = "ep_return") -> tu
     steps = np.array([row["timesteps"] for row in rows])
     returns = np.array([row[column] for row in rows])
     return steps, uniform_filter1d(returns, size=min(window, len(returns)), mode="nearest")
+
+
+@dataclass(frozen=True)
+class Agent:
+    """An evaluated Zerith-1 agent of the campaign: a run at the step of its final evaluation."""
+
+    names: tuple[str, ...]
+    """The queue's entries evaluated at this checkpoint."""
+    run: Path
+    steps: int
+    paired: bool
+    """Whether its evaluation pairs with another method's (``results.evaluations.pairs``)."""
+
+
+def campaign_agents(queue_path: Path) -> list[Agent]:
+    """Every evaluated Zerith-1 agent of the queue (entries of env Zerith1-v0 with an ``evaluations/<steps>
+    .json``), each checkpoint once, in queue order."""
+    evaluations = load_evaluations([e for e in load_queue(Path(queue_path)) if e.env_id == ZERITH1_ID])
+    paired = {id(e) for pair in pairs(evaluations) for e in pair}
+    agents: dict[tuple[Path, int], Agent] = {}
+    for e in evaluations:
+        key = (e.entry.run, e.steps)
+        known = agents.get(key)
+        names = (*known.names, e.entry.name) if known else (e.entry.name,)
+        agents[key] = Agent(names, e.entry.run, e.steps, id(e) in paired or bool(known and known.paired))
+    return list(agents.values())

@@ -11,9 +11,6 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.campaign.final_evaluation import (
-    trace_path,
-)
 from sb3_huri.experiments.campaign.queue import PROTOCOLS, CampaignEntry
 from sb3_huri.experiments.campaign.results.band import early_signal_lines
 from sb3_huri.experiments.campaign.results.evaluations import (
@@ -35,13 +32,10 @@ from sb3_huri.experiments.campaign.results.markdown import (
     save_figure,
     share_cell,
 )
-from sb3_huri.experiments.evaluation import (
-    PLANE_CASE,
-    RISK_CASES,
-    read_trace,
-)
-from sb3_huri.experiments.robustness import read_rows
-from sb3_huri.zoo.curve import final_return, read_curve
+from sb3_huri.runner.curve import final_return, read_curve
+from sb3_huri.runner.evaluation import PLANE_CASE, RISK_CASES, read_trace
+from sb3_huri.runner.record import trace_path
+from sb3_huri.runner.robustness import read_rows
 
 
 def _run_label(run_entries: Sequence[CampaignEntry]) -> str:

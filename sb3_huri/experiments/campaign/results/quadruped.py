@@ -27,7 +27,7 @@ from sb3_huri.experiments.campaign.results.markdown import (
     verdict,
 )
 from sb3_huri.experiments.campaign.results.tables import case_difference, method_pair_lines, survival_cell
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.runner.curve import read_curve
 
 PAPER_TABLE8 = {
     "platform-0.40": {"huri-baseline": 65.37, "huri": 92.73},

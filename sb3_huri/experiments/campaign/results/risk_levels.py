@@ -28,7 +28,7 @@ from sb3_huri.experiments.analyses.risk_levels import (
 )
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.markdown import millions
-from sb3_huri.experiments.layout import read_json
+from sb3_huri.runner.files import read_json
 from zerith_gym.scenarios import TEST_COMMAND
 
 SCRIPT = "benchmarks/risk_levels.py"

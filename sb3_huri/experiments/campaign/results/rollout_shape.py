@@ -27,9 +27,9 @@ from sb3_huri.experiments.campaign.results.evaluations import (
 )
 from sb3_huri.experiments.campaign.results.markdown import figure_lines, link, millions, save_figure
 from sb3_huri.experiments.campaign.results.tables import pair_table
-from sb3_huri.experiments.robustness import read_rows
 from sb3_huri.experiments.statistics import mean_ci
-from sb3_huri.zoo.curve import read_curve
+from sb3_huri.runner.curve import read_curve
+from sb3_huri.runner.robustness import read_rows
 
 WIDE, REFERENCE = "robust-256", "robust"
 """The protocol of the shape under test, and the protocol it is held to."""

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from sb3_huri.experiments import paper
-from sb3_huri.experiments.campaign.final_evaluation import PARTIAL, evaluation_cases, hardware_until
-from sb3_huri.experiments.campaign.queue import EVALUATIONS, PROTOCOLS, CampaignEntry
+from sb3_huri.experiments.campaign.final_evaluation import evaluation_cases
+from sb3_huri.experiments.campaign.queue import PROTOCOLS, CampaignEntry
 from sb3_huri.experiments.campaign.results.evaluations import (
     BASELINE,
     SURVIVAL_CASES,
@@ -30,9 +30,10 @@ from sb3_huri.experiments.campaign.results.markdown import (
     share_cell,
     verdict,
 )
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS
-from sb3_huri.experiments.layout import read_json
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
+from sb3_huri.runner.files import read_json
+from sb3_huri.runner.record import EVALUATIONS, PARTIAL
 
 
 def findings_section(
@@ -108,7 +109,7 @@ def _evaluating(entry: CampaignEntry) -> int | None:
 def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[int, float, list[str], str]:
     """Steps the run trained, training hours (up to the evaluated checkpoint once evaluated), the
     hardware of those hours and the entry's state in words."""
-    from sb3_huri.zoo.checkpoints import RunState
+    from sb3_huri.runner.state import RunState
 
     run = RunState.read(entry.run, entry.env_id)
     state = entry.state()
@@ -121,7 +122,7 @@ def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[in
     cases = _evaluating(entry)
     if state == "evaluate" and cases is not None:
         state = f"evaluating ({cases} of {len(evaluation_cases(entry))} cases)"
-    return run.timesteps, run.wall_s / 3600, hardware_until(entry.run, run.timesteps + 1, entry.env_id), state
+    return run.timesteps, run.wall_s / 3600, run.hardware_until(run.timesteps + 1), state
 
 
 def status_section(

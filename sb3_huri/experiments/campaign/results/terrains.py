@@ -11,7 +11,7 @@ from sb3_huri.experiments import paper
 from sb3_huri.experiments.campaign.queue import PROTOCOLS
 from sb3_huri.experiments.campaign.results.evaluations import Evaluated, method_label, pairs
 from sb3_huri.experiments.campaign.results.tables import method_pair_lines, survival_cell
-from sb3_huri.experiments.evaluation import TERRAIN_SCENARIOS
+from sb3_huri.runner.evaluation import TERRAIN_SCENARIOS
 
 TERRAIN_PROTOCOL = "terrain"
 """The campaign protocol that trains on terrains, as the paper's Table 9 agents did."""

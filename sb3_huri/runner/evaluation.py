@@ -20,7 +20,7 @@ With ``risk_states=True`` every robot-step's assessment is kept too (``RiskState
 and RND parts, the IQR and the RND novelty), for statistics over all the states an agent visits
 (``sb3_huri.experiments.analyses.risk_levels``).
 
-``PROTOCOL`` is the paper's evaluation (``DESIGN`` section 6): the six disturbance scenarios of its Table 1
+``PROTOCOL`` is the paper's evaluation: the six disturbance scenarios of its Table 1
 (survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), the
 terrain tests of its appendix (Tables 8 and 9: survival) and walking on the plane, with risk traces on the
 plane, under sudden pushes and on uneven ground (its Fig. 5).
@@ -30,24 +30,15 @@ from __future__ import annotations
 
 import contextlib
 import itertools
-import os
 import random
-import time
 from collections.abc import Iterator, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sb3_huri.experiments.layout import (
-    ExperimentError,
-    RunStatus,
-    Settings,
-    atomic_write_json,
-    read_json,
-    write_status,
-)
+from sb3_huri.runner.files import RunError, replaced
 from zerith_gym.observations import layout_slices
 from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 from zerith_gym.robot import CONTROL_DT, ZERITH1
@@ -327,9 +318,6 @@ def _rollout(
     return result
 
 
-EVALUATION_FILE = "evaluation.json"
-
-
 def risk_file(folder: Path, case: str, prefix: str = "") -> Path:
     """Where the risk trace of ``case`` is kept in a run folder (``risk_nominal-1.npz`` for ``nominal@1``;
     ``<prefix>risk_nominal-1.npz`` to tell the traces of several evaluations apart)."""
@@ -338,63 +326,14 @@ def risk_file(folder: Path, case: str, prefix: str = "") -> Path:
 
 def write_trace(target: Path, trace: RiskTrace) -> None:
     """Save ``trace``'s arrays at ``target`` (``.npz``) through a temporary file: no torn file on a kill."""
-    temporary = target.with_name(f".{target.name}.tmp")
-    with open(temporary, "wb") as f:
-        np.savez(f, **trace.arrays())
-    os.replace(temporary, target)
+    with replaced(target) as temporary, open(temporary, "wb") as file:
+        np.savez(file, **trace.arrays())
 
 
 def read_trace(path: Path) -> dict[str, np.ndarray]:
-    """The arrays of a risk trace file (``write_trace``); ExperimentError if it is corrupt."""
+    """The arrays of a risk trace file (``write_trace``); RunError if it is corrupt."""
     try:
         with np.load(path) as arrays:
             return {key: arrays[key] for key in arrays.files}
     except (OSError, ValueError) as error:
-        raise ExperimentError(f"{path} is corrupt ({error}); delete it to evaluate anew") from error
-
-
-def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: int = 0) -> RunStatus:
-    """Evaluate the trained run in ``folder`` on every case of ``PROTOCOL``; return its final status.
-
-    Each case's metrics are added to ``evaluation.json`` as soon as the case is done (and risk traces
-    written to ``risk_<case>.npz``), so an interrupted evaluation continues with the next case. Results
-    of other evaluation settings, or of the model before it trained on, are dropped and redone.
-    """
-    from sb3_huri.zoo import load_run
-
-    path = folder / EVALUATION_FILE
-    wanted = {**asdict(settings.eval), "trained_to": status.trained_to}
-    done: dict[str, Any] = {}
-    if path.exists():
-        previous = read_json(path, "a run's evaluation")
-        if isinstance(previous, dict) and previous.get("settings") == wanted:
-            done = dict(previous.get("cases") or {})
-    model, normalizer = load_run(folder, settings.env)
-    status.state, status.eval_cases, status.eval_done = "evaluating", len(PROTOCOL), len(done)
-    write_status(folder, status)
-    began, seconds = time.time(), status.eval_seconds
-    for case in PROTOCOL:
-        if case in done:
-            continue
-        scenario, command = parse_case(case)
-        metrics = evaluate(
-            model,
-            normalizer,
-            scenario,
-            command,
-            settings.eval.episodes,
-            settings.eval.seed,
-            episode_steps=settings.eval.episode_steps,
-            workers=workers,
-            risk=case in RISK_CASES,
-        )
-        trace = metrics.pop("trace", None)
-        if trace is not None:
-            write_trace(risk_file(folder, case), trace)
-        done[case] = metrics
-        atomic_write_json(path, {"settings": wanted, "cases": done})
-        status.eval_done, status.eval_seconds = len(done), seconds + time.time() - began
-        write_status(folder, status)
-    status.evaluated, status.state = wanted, "done"
-    write_status(folder, status)
-    return status
+        raise RunError(f"{path} is corrupt ({error}); delete it to evaluate anew") from error

@@ -5,22 +5,24 @@ sudden forces on centroid, hands and feet, at the test ranges and 1 m/s), on ``s
 push from the side), ``nominal@1.0`` and ``nominal@0.5``, each on the same ``episodes`` robots (seeds
 ``seed + i``) for every checkpoint, and records the steps, the run's training wall time at that step
 (``curve.csv``), the hardware it trained on (``state.json``), the episodes per case, each case's survival,
-the Table-1 mean and the mean forward velocity at 1 m/s. The campaign's trainer writes a row every few million
-steps while it trains (``sb3_huri.experiments.trainer``); ``sb3_huri.experiments.analyses.robustness_curves``
-(``benchmarks/robustness_curve.py``) evaluates kept checkpoints afterwards.
+the Table-1 mean and the mean forward velocity at 1 m/s. The trainer writes a row every few million steps
+while it trains (``sb3_huri.runner.training.RobustnessSchedule``);
+``sb3_huri.experiments.analyses.robustness_curves`` (``benchmarks/robustness_curve.py``) evaluates kept
+checkpoints afterwards.
 """
 
 from __future__ import annotations
 
 import csv
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-from sb3_huri.experiments.evaluation import TABLE1_SCENARIOS, evaluate, parse_case, random_states_kept
+from sb3_huri.runner.curve import wall_time_at
+from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate, parse_case, random_states_kept
+from sb3_huri.runner.files import replaced
+from sb3_huri.runner.state import RunState
 
-ENV_ID = "Zerith1-v0"
 ROBUSTNESS_FILE = "robustness.csv"
 NOMINAL = ("nominal@1.0", "nominal@0.5")
 CASES = (*TABLE1_SCENARIOS, "side-impact", *NOMINAL)
@@ -66,30 +68,6 @@ def robustness_row(
     return row
 
 
-def wall_time_at(run: Path, steps: int) -> float:
-    """The run's training wall time when it reached `steps` (the curve's nearest row at or before it)."""
-    wall = 0.0
-    path = run / "curve.csv"
-    if not path.is_file():
-        return wall
-    with path.open() as file:
-        for row in csv.DictReader(file):
-            if int(row["timesteps"]) > steps:
-                break
-            wall = float(row["wall_s"])
-    return wall
-
-
-def training_hardware(run: Path, steps: int) -> str:
-    """The hardware of the training session that reached `steps` (`state.json`), or "unknown"."""
-    path = run / ENV_ID / "state.json"
-    sessions = json.loads(path.read_text())["sessions"] if path.is_file() else []
-    for session in sessions:
-        if session["from_timesteps"] < steps <= session.get("to_timesteps", steps):
-            return session["hardware"]
-    return "unknown"
-
-
 def read_rows(run: Path) -> dict[int, dict[str, str]]:
     """The evaluated rows of a run's `robustness.csv` by step, each with its `episodes` per case."""
     path = run / ROBUSTNESS_FILE
@@ -104,13 +82,10 @@ def read_rows(run: Path) -> dict[int, dict[str, str]]:
 
 def write_rows(run: Path, rows: dict[int, dict[str, Any]]) -> None:
     """Write every row, by step, through a temporary file: an interrupted write leaves the old file."""
-    path = run / ROBUSTNESS_FILE
-    partial = path.with_suffix(".csv.tmp")
-    with partial.open("w", newline="") as file:
+    with replaced(run / ROBUSTNESS_FILE) as temporary, temporary.open("w", newline="") as file:
         writer = csv.DictWriter(file, fieldnames=COLUMNS)
         writer.writeheader()
         writer.writerows(row for _, row in sorted(rows.items()))
-    partial.replace(path)
 
 
 def add_row(run: Path, steps: int, metrics: dict[str, float], episodes: int) -> dict[str, Any]:
@@ -120,7 +95,7 @@ def add_row(run: Path, steps: int, metrics: dict[str, float], episodes: int) -> 
     rows[steps] = {
         "timesteps": steps,
         "wall_s": wall_time_at(run, steps),
-        "hardware": training_hardware(run, steps),
+        "hardware": RunState.read(run).hardware_at(steps),
         "episodes": episodes,
         **metrics,
     }

@@ -7,28 +7,28 @@ An experiment folder ``DIR`` holds::
         <env>.zip, <env>/{config,args}.yml, <env>/vecnormalize.pkl    the newest checkpoint
         <env>/state.json, <env>/rng.pt        its steps, curriculum stage, sessions and random states
         status.json                           the grid's record: trained to, resumptions, evaluated, times
-        curve.csv                             the learning curve (sb3_huri.zoo.curve; Fig. 3 analog)
-        evaluation.json                       metrics per evaluation case (``evaluation.PROTOCOL``)
-        risk_<case>.npz                       the critic's trace in the risk cases (the Fig. 5 analog)
+        curve.csv                             the learning curve (sb3_huri.runner.curve; Fig. 3 analog)
+        evaluations/<steps>.json              the evaluation record of its checkpoint (sb3_huri.runner.record)
+        evaluations/<steps>-risk_<case>.npz   the critic's trace in the risk cases (the Fig. 5 analog)
     DIR/report.md, DIR/*.png                  written by ``python -m sb3_huri.experiments report DIR``
 
-Every JSON file is replaced atomically (written to a temporary file, then ``os.replace``), so a kill at
-any moment leaves either the old or the new version, never a torn one. A run's folder is the one format
-every training of the package writes (``sb3_huri.experiments.trainer``): a resumed run continues from
-its newest checkpoint, which ``state.json`` completes.
+Every file is replaced atomically (``sb3_huri.runner.files``), so a kill at any moment leaves either the
+old or the new version, never a torn one. A run's folder is the one format every training of the package
+writes (``sb3_huri.runner``): a resumed run continues from its newest checkpoint, which ``state.json``
+completes.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
-import json
-import os
-import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
+
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.files import read_json, write_json
+from sb3_huri.runner.record import EvalSettings
 
 EXPERIMENT_FILE = "experiment.json"
 STATUS_FILE = "status.json"
@@ -37,75 +37,8 @@ RUN_FORMAT = "sb3-huri-run"
 VERSION = 1
 
 
-class ExperimentError(Exception):
-    """A problem with the command or the output folder that the user has to resolve (no traceback)."""
-
-
 class RunBusy(ExperimentError):
     """The run folder is locked by a live process (an earlier command still running, or another node)."""
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        if hasattr(os, "fchmod"):  # mkstemp gives 0600: other users of a shared folder could not read it
-            os.fchmod(handle, 0o644)
-        with os.fdopen(handle, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(temporary)
-        raise
-
-
-def atomic_write_json(path: Path, data: Any) -> None:
-    """``data`` as indented JSON at ``path``, atomically."""
-    atomic_write_text(path, json.dumps(data, indent=1, sort_keys=True) + "\n")
-
-
-def read_json(path: Path, what: str) -> Any:
-    """The JSON object at ``path``; ExperimentError naming ``what`` the file should be if it is not JSON."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ExperimentError(f"{path} is corrupt ({error}); it should hold {what}") from error
-
-
-def resumed_record(
-    path: Path, record: dict[str, Any], same: tuple[str, ...], results: str, what: str
-) -> dict[str, Any]:
-    """A resumable analysis's `record` with the `results` (a mapping) and ``eval_s`` of the file at `path`,
-    when that file measured with the same values of the keys `same`; `record` as it is without a file.
-    ExperimentError for a file that is not such a record (naming `what` it should hold) or that measured
-    otherwise (naming the keys that differ)."""
-    if not path.is_file():
-        return record
-    previous = read_json(path, what)
-    if not isinstance(previous, dict) or not isinstance(previous.get(results), dict):
-        raise ExperimentError(f"{path} holds no {results}; delete it to measure anew")
-    canonical = functools.partial(json.dumps, sort_keys=True)  # equal for a value and its copy read back
-    differing = [key for key in same if canonical(previous.get(key)) != canonical(record[key])]
-    if differing:
-        raise ExperimentError(
-            f"{path} holds measurements with other {', '.join(differing)} "
-            f"({'; '.join(f'{key}: {previous.get(key)}' for key in differing)}); measure with those, "
-            "or delete the file to measure anew"
-        )
-    return {**record, results: previous[results], "eval_s": float(previous.get("eval_s", 0.0))}
-
-
-@dataclass(frozen=True)
-class EvalSettings:
-    """How every run is evaluated: episodes per case, time limit (control steps) and the robots' seed."""
-
-    episodes: int = 10
-    episode_steps: int = 1000
-    seed: int = 1000
 
 
 @dataclass
@@ -184,7 +117,7 @@ def open_experiment(out: Path, requested: Settings) -> Settings:
                 "choose a new or empty --out folder"
             )
         out.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(path, requested.to_json())
+        write_json(path, requested.to_json())
         return requested
     current = Settings.from_json(read_json(path, "an experiment's settings"), path)
     if current.env != requested.env:
@@ -214,7 +147,7 @@ def open_experiment(out: Path, requested: Settings) -> Settings:
         checkpoint_freq=requested.checkpoint_freq,
         runs=list(dict.fromkeys([*current.runs, *requested.runs])),
     )
-    atomic_write_json(path, merged.to_json())
+    write_json(path, merged.to_json())
     return merged
 
 
@@ -277,7 +210,7 @@ def read_status(folder: Path, method: str, seed: int, env: str) -> RunStatus:
 
 
 def write_status(folder: Path, status: RunStatus) -> None:
-    atomic_write_json(folder / STATUS_FILE, status.to_json())
+    write_json(folder / STATUS_FILE, status.to_json())
 
 
 @contextlib.contextmanager
@@ -325,9 +258,9 @@ def check_env(env: str) -> None:
     import gymnasium as gym
 
     import zerith_gym  # noqa: F401  (registers the Zerith envs)
-    from sb3_huri.zoo import ZERITH_ENTRY_POINT
+    from zerith_gym import ZERITH1_ENTRY_POINT
 
-    zerith = [spec.id for spec in gym.registry.values() if spec.entry_point == ZERITH_ENTRY_POINT]
+    zerith = [spec.id for spec in gym.registry.values() if spec.entry_point == ZERITH1_ENTRY_POINT]
     if env not in zerith:
         raise ExperimentError(
             f"unknown env {env!r}: the experiments train Zerith robots on their batched env; envs: "

@@ -1,7 +1,7 @@
 """The one trainer of every run: start or resume a run folder, train it, checkpoint it between rollouts.
 
-``train_run`` is what the grid (``training``), ``examples/train_zerith.py`` and the campaign
-(``python -m sb3_huri.experiments campaign``) run. It trains what ``rl_zoo3 train --algo <method> --env
+``train_run`` is what the experiment grid, the campaign (``python -m sb3_huri.experiments run|campaign``)
+and ``examples/train_zerith.py`` run. It trains what ``rl_zoo3 train --algo <method> --env
 Zerith1-v0 -conf <preset>`` trains (the preset's batched env, normalizer, model and ``callback:`` entries,
 read as RL Zoo reads them) and adds what a run spanning many sessions needs. A run folder, in RL Zoo's
 layout so that RL Zoo's tools read it::
@@ -10,10 +10,10 @@ layout so that RL Zoo's tools read it::
     <run>/Zerith1-v0/config.yml, args.yml     the preset and the run's arguments (method, seed, env options)
     <run>/Zerith1-v0/vecnormalize.pkl         its normalizer
     <run>/Zerith1-v0/state.json, rng.pt       steps, curriculum stage, terrain levels, sessions; random states
-    <run>/curve.csv                           a row per rollout (sb3_huri.zoo.curve)
+    <run>/curve.csv                           a row per rollout (sb3_huri.runner.curve)
     <run>/robustness.csv                      Table-1 survival every few million steps (robustness)
     <run>/checkpoints/rl_model_<steps>_steps.zip, rl_model_vecnormalize_<steps>_steps.pkl   kept copies
-    <run>/evaluations/<steps>.json            final evaluations (final_evaluation)
+    <run>/evaluations/<steps>.json            evaluations of its checkpoints (sb3_huri.runner.record)
 
 Checkpoints are taken between rollouts (after an update, before the next collection), so a checkpoint holds
 exactly the steps its model learnt from. A stop request (SIGTERM, SIGINT, the wall-time limit) lets the
@@ -32,12 +32,15 @@ from typing import Any
 
 import yaml
 
-from sb3_huri.zoo.runs import DEFAULT_ENV_ID as ENV_ID
+from sb3_huri.runner.build import preset_env, preset_model, resume_overrides
+from sb3_huri.runner.checkpoint import RunCheckpoint
+from sb3_huri.runner.state import RunState, restore_random_states, start_on_levels
+from zerith_gym import ZERITH1_ID, robot_of
 
 
 @dataclass(frozen=True)
 class RobustnessSchedule:
-    """A robustness row (``sb3_huri.experiments.robustness``) each time training passes a multiple of
+    """A robustness row (``sb3_huri.runner.robustness``) each time training passes a multiple of
     `every` steps: `episodes` robots per case, seeded `seed + i`."""
 
     every: int = 5_000_000
@@ -88,7 +91,7 @@ class RunRequest:
     """Train until the run holds at least this many steps."""
     curriculum: tuple[int, int] | None = None
     """(steps, stages) of a `RandomizationCurriculum` replacing the preset's."""
-    env_id: str = ENV_ID
+    env_id: str = ZERITH1_ID
     """The env the run trains on (``Zerith1-v0``, ``Go2Like-v0``): the name of its files in the folder."""
 
     def is_resume(self) -> bool:
@@ -97,8 +100,6 @@ class RunRequest:
 
 def _resolve_preset(request: RunRequest) -> tuple[dict[str, Any], dict[str, Any], str, int]:
     """The preset to train with, the hyperparameters a resumed model changes, the method and the seed."""
-    from sb3_huri.zoo.presets import resume_overrides
-
     if not request.is_resume():
         if request.preset is None:
             raise ValueError(f"{request.run} holds no {request.env_id}.zip to resume, and no preset given")
@@ -151,8 +152,6 @@ def _build_model(
 ) -> Any:  # fmt: skip
     """A new model of the preset, or the run's newest checkpoint loaded with `overrides`, on `env`."""
     from sb3_huri import HuRiPPO
-    from sb3_huri.zoo.checkpoints import RunState, restore_random_states, start_on_levels
-    from sb3_huri.zoo.presets import preset_model
 
     if not request.is_resume():
         return preset_model(
@@ -185,9 +184,6 @@ def train_run(request: RunRequest, options: TrainingOptions | None = None) -> in
     import torch as th
     from stable_baselines3.common.callbacks import CallbackList
 
-    from sb3_huri.zoo import robot_of
-    from sb3_huri.zoo.checkpoints import RunCheckpoint, RunState
-    from sb3_huri.zoo.presets import preset_env
     from zerith_gym.robots import locomotion_task
     from zerith_gym.scenarios import get_scenario
 

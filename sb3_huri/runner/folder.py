@@ -1,8 +1,10 @@
-"""Run folders in RL Zoo's layout: numbering new runs and saving a trained model where RL Zoo's tools look.
+"""Run folders in RL Zoo's layout: numbering new runs, saving a model where RL Zoo's tools look, loading it.
 
 A run folder ``<log_folder>/<algo>/<env_id>_<id>`` holds ``<env_id>.zip`` and ``<env_id>/`` with
-``config.yml`` (the preset), ``args.yml`` and, when observations were normalized, ``vecnormalize.pkl``.
-``rl_zoo3 enjoy``, ``examples/watch_zerith.py`` and ``sb3_huri.zoo.load_run`` read it.
+``config.yml`` (the preset), ``args.yml`` and, when observations were normalized, ``vecnormalize.pkl``;
+kept copies of earlier checkpoints lie in ``checkpoints/`` (``rl_model_<steps>_steps.zip`` beside
+``rl_model_vecnormalize_<steps>_steps.pkl``, as RL Zoo's ``CheckpointCallback`` names them).
+``rl_zoo3 enjoy``, ``examples/watch_zerith.py`` and ``load_run`` read it.
 """
 
 from __future__ import annotations
@@ -10,13 +12,19 @@ from __future__ import annotations
 import difflib
 import os
 import pickle
+import re
 from pathlib import Path
 from typing import Any
 
-DEFAULT_ENV_ID = "Zerith1-v0"
+from sb3_huri.runner.files import read_json, replaced, write_text
+from zerith_gym import ZERITH1_ID
+
+CHECKPOINTS = "checkpoints"
+"""The folder of a run's kept checkpoints."""
+_CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
 
 
-def next_run_folder(log_folder: str | os.PathLike, algo: str, env_id: str = DEFAULT_ENV_ID) -> Path:
+def next_run_folder(log_folder: str | os.PathLike, algo: str, env_id: str = ZERITH1_ID) -> Path:
     """``<log_folder>/<algo>/<env_id>_<id>`` with the next free id, as RL Zoo numbers its runs."""
     log_folder = Path(log_folder)
     ids = [
@@ -32,12 +40,12 @@ def save_run(
     run: str | os.PathLike,
     preset: dict[str, Any],
     args: dict[str, Any],
-    env_id: str = DEFAULT_ENV_ID,
+    env_id: str = ZERITH1_ID,
 ) -> None:
     """Model, normalizer, preset and arguments in RL Zoo's layout (what ``rl_zoo3 enjoy`` loads).
 
-    The normalizer is saved when the model's env is a ``VecNormalize``. Model and normalizer are written to
-    temporary files and renamed, so that a run stopped while saving keeps its previous files whole.
+    The normalizer is saved when the model's env is a ``VecNormalize``. Every file is written whole
+    (``sb3_huri.runner.files``), so that a run stopped while saving keeps its previous files.
     """
     import yaml
     from stable_baselines3.common.vec_env import VecNormalize
@@ -45,17 +53,14 @@ def save_run(
     run = Path(run)
     stats = run / env_id
     stats.mkdir(parents=True, exist_ok=True)
-    temporary = run / f".{env_id}.saving.zip"
-    model.save(temporary)
-    os.replace(temporary, run / f"{env_id}.zip")
+    with replaced(run / f"{env_id}.zip") as temporary:
+        model.save(temporary)
     env = model.get_env()
     if isinstance(env, VecNormalize):
-        env.save(str(stats / ".vecnormalize.saving.pkl"))
-        os.replace(stats / ".vecnormalize.saving.pkl", stats / "vecnormalize.pkl")
-    with open(stats / "config.yml", "w") as f:
-        yaml.safe_dump(preset, f)
-    with open(stats / "args.yml", "w") as f:
-        yaml.safe_dump(args, f)
+        with replaced(stats / "vecnormalize.pkl") as temporary:
+            env.save(str(temporary))
+    write_text(stats / "config.yml", yaml.safe_dump(preset))
+    write_text(stats / "args.yml", yaml.safe_dump(args))
 
 
 def load_model(path: str | os.PathLike) -> Any:
@@ -88,9 +93,8 @@ def load_run(
     """
     import gymnasium as gym
 
-    from sb3_huri.zoo import register_environments
+    import zerith_gym  # noqa: F401  (registers the env ids)
 
-    register_environments()
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"run folder {folder} not found")
@@ -168,3 +172,31 @@ def copy_agent(run: str | os.PathLike, env_id: str, destination: str | os.PathLi
     for name in ("config.yml", "args.yml"):
         shutil.copyfile(source / env_id / name, destination / env_id / name)
     return destination
+
+
+def saved_models(run: Path, env_id: str = ZERITH1_ID) -> dict[int, tuple[Path, Path | None]]:
+    """Every complete model the run folder holds, by step: model file and normalizer file (None for a run
+    without ``VecNormalize``). The run's newest model (step from ``state.json``) and its kept checkpoints;
+    a checkpoint without its normalizer in a run that normalizes (a kill between the two files) is left out.
+    `env_id`: the env the run trained on (its files' names).
+    """
+    newest_normalizer = run / env_id / "vecnormalize.pkl"
+    folder = run / CHECKPOINTS
+    kept = {
+        int(match.group(1)): folder / match.group(0)
+        for match in (_CHECKPOINT.fullmatch(p.name) for p in folder.glob("rl_model_*_steps.zip"))
+        if match
+    }
+    normalizers = {steps: folder / f"rl_model_vecnormalize_{steps}_steps.pkl" for steps in kept}
+    normalizes = newest_normalizer.is_file() or any(path.is_file() for path in normalizers.values())
+    found: dict[int, tuple[Path, Path | None]] = {}
+    for steps, model in kept.items():
+        if normalizers[steps].is_file():
+            found[steps] = (model, normalizers[steps])
+        elif not normalizes:
+            found[steps] = (model, None)
+    state = run / env_id / "state.json"
+    if (run / f"{env_id}.zip").is_file() and state.is_file():
+        steps = int(read_json(state, "the run's training state")["timesteps"])
+        found[steps] = (run / f"{env_id}.zip", newest_normalizer if newest_normalizer.is_file() else None)
+    return dict(sorted(found.items()))

@@ -1,0 +1,87 @@
+"""Files a kill cannot tear: every file of a run is written whole through a temporary file, then renamed.
+
+``replaced(path)`` gives a temporary path beside `path` to write to by any means (``model.save``,
+``th.save``, ``np.savez`` on an open file); when the block ends without an error the temporary file is
+flushed to disk and renamed onto `path` (``os.replace``: atomic on POSIX and Windows), and on an error it is
+removed. A kill at any moment leaves the old file or the new one, never half of one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+
+class RunError(Exception):
+    """A problem with a run's files or a request for it that the user has to resolve: a missing, corrupt or
+    foreign file, or a request the run cannot meet. Commands print it without a traceback."""
+
+
+@contextlib.contextmanager
+def replaced(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary path in `path`'s folder (created, with the suffix of `path`) that replaces `path` when
+    the block ends without an error; removed otherwise."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}")
+    os.close(handle)
+    temporary = Path(name)
+    try:
+        if hasattr(os, "chmod"):  # mkstemp gives 0600: other users of a shared folder could not read it
+            os.chmod(temporary, 0o644)
+        yield temporary
+        with open(temporary, "rb+") as written:  # on disk before the rename, so a crash keeps one whole file
+            os.fsync(written.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise
+
+
+def write_text(path: str | os.PathLike, text: str) -> None:
+    """``text`` at `path`, atomically."""
+    with replaced(path) as temporary:
+        temporary.write_text(text)
+
+
+def write_json(path: str | os.PathLike, data: Any) -> None:
+    """``data`` as indented JSON with sorted keys at `path`, atomically."""
+    write_text(path, json.dumps(data, indent=1, sort_keys=True) + "\n")
+
+
+def read_json(path: Path, what: str) -> Any:
+    """The JSON value at `path`; RunError naming `what` the file should hold if it is not JSON."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise RunError(f"{path} is corrupt ({error}); it should hold {what}") from error
+
+
+def resumed_record(
+    path: Path, record: dict[str, Any], same: tuple[str, ...], results: str, what: str
+) -> dict[str, Any]:
+    """A resumable measurement's `record` with the `results` (a mapping) and ``eval_s`` of the file at
+    `path`, when that file measured with the same values of the keys `same`; `record` as it is without a
+    file. RunError for a file that is not such a record (naming `what` it should hold) or that measured
+    otherwise (naming the keys that differ)."""
+    if not path.is_file():
+        return record
+    previous = read_json(path, what)
+    if not isinstance(previous, dict) or not isinstance(previous.get(results), dict):
+        raise RunError(f"{path} holds no {results}; delete it to measure anew")
+    canonical = functools.partial(json.dumps, sort_keys=True)  # equal for a value and its copy read back
+    differing = [key for key in same if canonical(previous.get(key)) != canonical(record[key])]
+    if differing:
+        raise RunError(
+            f"{path} holds measurements with other {', '.join(differing)} "
+            f"({'; '.join(f'{key}: {previous.get(key)}' for key in differing)}); measure with those, "
+            "or delete the file to measure anew"
+        )
+    return {**record, results: previous[results], "eval_s": float(previous.get("eval_s", 0.0))}
