@@ -40,6 +40,7 @@ from typing import Any
 
 import yaml
 
+from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.runner.folder import next_run_folder
 from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import METHODS, read_preset
@@ -65,7 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     add = parser.add_argument
-    add("--algo", default=None, choices=list(METHODS), help="method (RL Zoo algorithm name; default huri)")
+    add(
+        "--algo",
+        default=None,
+        choices=list(METHODS),
+        help=f"method (RL Zoo algorithm name; default {DEFAULT_METHOD})",
+    )
     add(
         "-conf",
         "--conf-file",

@@ -66,7 +66,7 @@ def test_load_with_custom_policy_kwargs(tmp_path, which):
 
 
 def test_learning_without_reward_normalization_warns_how_to_normalize():
-    model = HuRiPPO("MlpPolicy", dict_env(), **SMALL)
+    model = HuRiPPO("MlpPolicy", dict_env(), method="huri", **SMALL)  # the absolute band
     with pytest.warns(UnnormalizedRewardWarning, match=r"normalize.*VecNormalize\(env, norm_reward=True\)"):
         model.learn(64)
     model.set_env(VecNormalize(dict_env(), norm_reward=False))
@@ -74,9 +74,12 @@ def test_learning_without_reward_normalization_warns_how_to_normalize():
         model.learn(64)
 
 
-@pytest.mark.parametrize("setting", ["VecNormalize", "NormalizeReward", "huri-baseline", "huri-no-iqr"])
-def test_no_warning_with_normalized_rewards_or_without_iqr_thresholds(setting):
-    method = setting if setting in ("huri-baseline", "huri-no-iqr") else "huri"
+@pytest.mark.parametrize(
+    "setting", ["VecNormalize", "NormalizeReward", "huri-baseline", "huri-no-iqr", "huri-percentile"]
+)
+def test_no_warning_with_normalized_rewards_or_without_absolute_iqr_thresholds(setting):
+    """Normalized rewards, no IQR band, or the scale-free band (the default method): nothing to warn of."""
+    method = setting if setting.startswith("huri") else "huri"
     if setting == "VecNormalize":
         env = VecNormalize(dict_env(), norm_obs=False, norm_reward=True)
     elif setting == "NormalizeReward":

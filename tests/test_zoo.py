@@ -245,8 +245,23 @@ def test_method_class_fixes_the_method(method: str) -> None:
     assert model.method == method
 
 
+def test_the_default_method_is_the_percentile_band_and_huri_keeps_the_printed_band() -> None:
+    """`HuRiPPO()` is HuRi with the scale-free band, the RL Zoo algorithm `huri-percentile` that takes any
+    `method`; `huri` (runs, agents, --algo) stays the band as printed, a class of its own."""
+    assert method_class("huri-percentile") is HuRiPPO
+    default = HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
+    assert default.method == "huri-percentile" and default.risk_model.iqr_band == "percentile"
+    literal = method_class("huri")("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
+    assert type(literal) is not HuRiPPO and literal.risk_model.iqr_band == "absolute"
+    assert HuRiPPO(
+        "MlpPolicy", "Pendulum-v1", method="huri", n_steps=8, device="cpu"
+    ).risk_model.iqr_band == ("absolute")
+
+
 def test_method_class_rejects_a_conflicting_method_and_an_unknown_one() -> None:
-    with pytest.raises(ValueError, match=r"method='huri' conflicts with the algorithm huri-cvar0.5"):
+    with pytest.raises(
+        ValueError, match=r"method='huri' conflicts with the algorithm huri-cvar0.5.*huri-percentile"
+    ):
         method_class("huri-cvar0.5")("MlpPolicy", "Pendulum-v1", method="huri", device="cpu")
     with pytest.raises(ValueError, match=r"unknown method 'cvar0.5': expected one of \['huri-baseline'"):
         method_class("cvar0.5")

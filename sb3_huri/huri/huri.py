@@ -31,6 +31,7 @@ from sb3_huri.huri.hyperparameters import (
     resolve_batch_size,
     warn_unless_rewards_normalized,
 )
+from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
 from sb3_huri.huri.saves import fitting_optimizer_state, upgrade_saved_attributes
@@ -49,13 +50,12 @@ class HuRiPPO(OnPolicyAlgorithm):
     The paper's methods are presets (``method``); every knob below overrides its preset. The risk arguments
     (``method`` to ``iqr_band_smoothing``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
     ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
-    names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others.
-    Defaults are the paper's Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
+    names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others. Defaults are the paper's
+    Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
 
     :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
         and ``Dict`` observations) or a :class:`HuRiPolicy` subclass
-    :param env: the environment to learn from (if registered in Gymnasium, can be a str); normalize its
-        rewards (``VecNormalize``): the IQR thresholds are in units of normalized returns
+    :param env: the environment to learn from (if registered in Gymnasium, can be a str)
     :param learning_rate: learning rate, a float or a schedule of the progress remaining (from 1 to 0);
         with ``desired_kl``, the initial learning rate
     :param n_steps: steps per environment per rollout
@@ -78,8 +78,8 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param critic_learning_rate: the critic's own learning rate (a float or a schedule), so that a small
         trust-region rate of the actor does not stop the critic learning; ``None`` (default) shares
         ``learning_rate``
-    :param method: the method's preset, a name of ``sb3_huri.huri.METHODS`` (``huri``, ``huri-baseline``,
-        ...; the RL Zoo algorithm names)
+    :param method: the method's preset, a name of ``sb3_huri.huri.METHODS`` (the RL Zoo algorithm names);
+        default ``huri-percentile``, HuRi with a scale-free IQR band (``huri``: the band as printed)
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
         given, else 64 (ignored by ``huri-baseline``, whose critic is scalar)
     :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the method's
@@ -87,7 +87,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param use_rnd: add ``tanh(RND error)`` to the risk level; ``None`` takes the method's
     :param wang_beta: Wang risk level when ``use_iqr`` is off (0: neutral, > 0: averse, < 0: seeking)
     :param cvar_alpha: CVaR level in ``(0, 1]`` when ``use_iqr`` is off (1: neutral)
-    :param iqr_thresholds: ``(t_min, t_max)`` of the IQR band, in units of the (normalized) return
+    :param iqr_thresholds: ``(t_min, t_max)`` of the absolute band, in return units (normalize rewards)
     :param iqr_risk_levels: risk level below, within and above the band; ``None`` takes
         ``(-1, 0, 1)`` for Wang and ``(1, 1, 0.5)`` for CVaR (paper A.8)
     :param iqr_band: ``"absolute"``: ``iqr_thresholds`` are fixed (the paper's band as printed);
@@ -145,7 +145,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         target_kl: float | None = None,
         desired_kl: float | None = None,
         critic_learning_rate: float | Schedule | None = None,
-        method: str = "huri",
+        method: str = DEFAULT_METHOD,
         n_quantiles: int | None = None,
         distortion: str | None = None,
         use_iqr: bool | None = None,
@@ -259,7 +259,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         return super()._init_callback(callback, progress_bar)
 
     def _setup_learn(self, total_timesteps: int, *args: Any, **kwargs: Any) -> tuple[int, BaseCallback]:
-        if self.risk_model.use_iqr and self.env is not None:
+        if self.risk_model.use_iqr and self.risk_model.iqr_band == "absolute" and self.env is not None:
             warn_unless_rewards_normalized(self.env, self.risk_model.iqr_thresholds)
         return super()._setup_learn(total_timesteps, *args, **kwargs)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.zoo import METHODS, algorithm_kwargs, normalize_kwargs
 
 
@@ -42,7 +43,7 @@ def preset_env(
 
 
 def preset_model(
-    preset: dict[str, Any], env: Any, *, method: str = "huri", seed: int = 0, **overrides: Any
+    preset: dict[str, Any], env: Any, *, method: str = DEFAULT_METHOD, seed: int = 0, **overrides: Any
 ) -> Any:
     """A new `HuRiPPO` of `method` (an RL Zoo algorithm name, `sb3_huri.zoo.METHODS`) with the preset's
     hyperparameters, any of them replaced by `overrides` (also `device`, `verbose`, `tensorboard_log`)."""

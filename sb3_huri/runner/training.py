@@ -32,6 +32,7 @@ from typing import Any
 
 import yaml
 
+from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.runner.build import preset_env, preset_model, resume_overrides
 from sb3_huri.runner.checkpoint import RunCheckpoint
 from sb3_huri.runner.state import RunState, restore_random_states, start_on_levels
@@ -104,7 +105,7 @@ def _resolve_preset(request: RunRequest) -> tuple[dict[str, Any], dict[str, Any]
         if request.preset is None:
             raise ValueError(f"{request.run} holds no {request.env_id}.zip to resume, and no preset given")
         preset = {**request.preset, **request.hyperparams}
-        return preset, {}, request.method or "huri", 0 if request.seed is None else request.seed
+        return preset, {}, request.method or DEFAULT_METHOD, 0 if request.seed is None else request.seed
     saved_folder = request.run / request.env_id
     saved = yaml.safe_load((saved_folder / "config.yml").read_text())
     saved_args = yaml.safe_load((saved_folder / "args.yml").read_text())

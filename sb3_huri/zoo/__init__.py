@@ -140,20 +140,21 @@ def use_batched_zerith_env() -> None:
 
 @functools.cache
 def method_class(method: str) -> type:
-    """``HuRiPPO`` with its ``method`` fixed: the class RL Zoo builds for the algorithm `method` (``huri`` is
-    ``HuRiPPO`` itself, whose default method it is); ValueError for a name not in ``METHODS``."""
+    """``HuRiPPO`` with its ``method`` fixed: the class RL Zoo builds for the algorithm `method` (the default
+    method, ``huri-percentile``, is ``HuRiPPO`` itself); ValueError for a name not in ``METHODS``."""
     from sb3_huri import HuRiPPO
+    from sb3_huri.huri.methods import DEFAULT_METHOD
 
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}: expected one of {list(METHODS)}")
-    if method == "huri":
+    if method == DEFAULT_METHOD:
         return HuRiPPO
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         if kwargs.setdefault("method", method) != method:
             raise ValueError(
                 f"method={kwargs['method']!r} conflicts with the algorithm {method}, which is HuRiPPO(method="
-                f"{method!r}): drop `method` from the hyperparameters or use --algo huri"
+                f"{method!r}): drop `method` from the hyperparameters or use --algo {DEFAULT_METHOD}"
             )
         HuRiPPO.__init__(self, *args, **kwargs)
 
