@@ -18,9 +18,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from sb3_huri.runner import robustness as robustness_rows
 from sb3_huri.runner.curve import CurveWriter
 from sb3_huri.runner.folder import CHECKPOINTS, save_run
+from sb3_huri.runner.robustness import add_row, robustness_row
 from sb3_huri.runner.state import RunState, hardware, save_random_states, terrain_levels
 from zerith_gym import ZERITH1_ID
 
@@ -138,14 +138,14 @@ class RunCheckpoint(CurveWriter):
         """Evaluate the model as it is now (the newest checkpoint) into the run's ``robustness.csv``."""
         began = time.time()
         schedule = self.robustness
-        metrics = robustness_rows.robustness_row(
+        metrics = robustness_row(
             self.model,
             self.model.get_vec_normalize_env(),
             schedule.episodes,
             schedule.seed,
             episode_steps=schedule.episode_steps,
         )
-        row = robustness_rows.add_row(self.run, self.saved_steps, metrics, schedule.episodes)
+        row = add_row(self.run, self.saved_steps, metrics, schedule.episodes)
         self._paused_s += time.time() - began
         if self.verbose:
             print(f"robustness at {self.saved_steps} steps: Table-1 mean {row['table1_mean']}", flush=True)
