@@ -8,7 +8,6 @@ moved out of the way and the checkpoint evaluated again.
 
 from __future__ import annotations
 
-import time
 from dataclasses import asdict
 from pathlib import Path
 
@@ -21,24 +20,24 @@ from sb3_huri.runner.record import EVALUATIONS, evaluate_checkpoint, read_record
 def evaluate_run(folder: Path, status: RunStatus, settings: Settings, workers: int = 0) -> RunStatus:
     """Evaluate the trained run in ``folder`` (its newest checkpoint) on every case of ``PROTOCOL``; return
     its final status."""
-    steps = max(saved_models(folder, settings.env))
+    models = saved_models(folder, settings.env)
+    steps = max(models)
     previous = read_record(folder, steps)
     if previous is not None and previous.get("settings") != asdict(settings.eval):
         _discard(folder, steps)
     status.state, status.eval_cases, status.eval_done = "evaluating", len(PROTOCOL), 0
     write_status(folder, status)
-    began, seconds = time.time(), status.eval_seconds
 
     def progress(done: int, eval_s: float) -> None:
-        status.eval_done, status.eval_seconds = done, seconds + time.time() - began
+        status.eval_done, status.eval_seconds = done, eval_s  # the record's time, all attempts
         write_status(folder, status)
 
     about = {"method": status.method, "seed": status.seed}
     evaluate_checkpoint(
-        folder, steps, saved_models(folder, settings.env)[steps], PROTOCOL, settings.eval, about,
+        folder, steps, models[steps], PROTOCOL, settings.eval, about,
         env_id=settings.env, workers=workers, progress=progress,
     )  # fmt: skip
-    status.checkpoint = steps
+    status.checkpoint, status.eval_done = steps, len(PROTOCOL)
     status.evaluated = {**asdict(settings.eval), "trained_to": status.trained_to}
     status.state = "done"
     write_status(folder, status)
