@@ -33,8 +33,7 @@ def replaced(path: str | os.PathLike) -> Iterator[Path]:
     os.close(handle)
     temporary = Path(name)
     try:
-        if hasattr(os, "chmod"):  # mkstemp gives 0600: other users of a shared folder could not read it
-            os.chmod(temporary, 0o644)
+        os.chmod(temporary, 0o644)  # mkstemp gives 0600: other users of a shared folder could not read it
         yield temporary
         with open(temporary, "rb+") as written:  # on disk before the rename, so a crash keeps one whole file
             os.fsync(written.fileno())

@@ -114,7 +114,8 @@ def evaluate_checkpoint(
     model_file, normalizer_file = model_files
     target = record_path(run, steps)
     if target.is_file():
-        held = {key: read_json(target, "an evaluation record").get(key) for key in about}
+        record = read_json(target, "an evaluation record")
+        held = {key: record.get(key) for key in about}
         if held != about:
             raise RunError(
                 f"{target} is an evaluation of {held}, not of {about}: move it away to evaluate the "

@@ -21,7 +21,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_huri.runner.files import read_json, replaced
+from sb3_huri.runner.files import read_json, replaced, write_text
 from zerith_gym import ZERITH1_ID
 
 STATE_FILE = "state.json"
@@ -47,8 +47,7 @@ class RunState:
 
     def write(self, run: str | os.PathLike, env_id: str = ZERITH1_ID) -> None:
         """Replace the run's ``state.json`` (atomically: written last, it completes a checkpoint)."""
-        with replaced(Path(run) / env_id / STATE_FILE) as temporary:
-            temporary.write_text(json.dumps(asdict(self), indent=1) + "\n")
+        write_text(Path(run) / env_id / STATE_FILE, json.dumps(asdict(self), indent=1) + "\n")
 
     def hardware_until(self, steps: int) -> list[str]:
         """The machines of the sessions that trained the run before `steps`, each named once."""
