@@ -87,3 +87,35 @@ def test_the_band_section_says_so_when_no_run_logged_its_risk_levels(tmp_path):
     figure.write_bytes(b"old")
     lines = band_section(load_queue(queue), tmp_path, tmp_path / "results.md")
     assert "No run has logged its risk levels yet." in lines and not figure.exists()
+
+
+def test_the_quadruped_early_signal_shows_the_terrain_level_every_5m_steps(tmp_path):
+    """Without robustness rows (the quadruped's robustness is its final platforms), the percentile run is
+    compared every 5M steps of its curve, with the robots' mean terrain level in place of Table 1."""
+    for run, ret, level in (("pct", 10.0, 0.5), ("huri", 20.0, 0.25), ("ppo", 30.0, 0.125)):
+        folder = tmp_path / run / "Go2Like-v0_1"
+        for index, step in enumerate(range(STEP, 5_000_000 + 1, STEP)):
+            row = {**dict.fromkeys(CURVE_COLUMNS, math.nan), "timesteps": step, "wall_s": 1.0}
+            row.update(ep_return=ret, ep_len=100.0, fall_rate=0.5, terrain_level=level + index / 100)
+            append_row(folder, row)
+    (tmp_path / "preset.yml").write_text(yaml.safe_dump({"Go2Like-v0": {"n_envs": 4}}))
+    entry = dict(protocol="quadruped", seed=0, conf="preset.yml", steps=75_000_000)
+    queue = [
+        {**entry, "name": name, "method": method, "run": f"{name}/Go2Like-v0_1"}
+        for name, method in (("pct", "huri-percentile"), ("huri", "huri"), ("ppo", "huri-baseline"))
+    ]
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": queue}))
+    lines = early_signal_lines(load_queue(tmp_path / "campaign.yml"), tmp_path / "results.md")
+
+    header = next(line for line in lines if line.startswith("| steps |"))
+    assert "terrain level" in header and "Table-1" not in header
+    rows = [line.split(" | ") for line in lines if line.startswith("| ") and line[2].isdigit()]
+    assert [row[0] for row in rows] == ["| 5M"]  # every 5M steps of the curve, up to its newest row
+    # The window (4M, 5M] holds rollouts 40-49: the level rises by 0.01 per rollout from each run's start.
+    expected = [np.mean([start + index / 100 for index in range(40, 50)]) for start in (0.5, 0.25, 0.125)]
+    assert rows[0][1:5] == [
+        "10 / 20 / 30",
+        "100 / 100 / 100",
+        "0.50 / 0.50 / 0.50",
+        " / ".join(f"{value:.2f}" for value in expected),
+    ]

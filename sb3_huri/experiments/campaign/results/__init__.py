@@ -16,7 +16,8 @@
 6b. the risk levels each HuRi-family agent sets on the states it visits, per scenario: the shares of states
    below, within and above its IQR band, mean beta and beta_RND, and whether the paper's order holds
    (``benchmarks/risk_levels.py`` measures them);
-7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog) and its Table 8 analog;
+7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
+   against HuRi and PPO at equal steps while they train, and its Table 8 analog;
 8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
    and their final evaluations on the same robots where both were evaluated at comparable steps;
 9. the Table 9 analog: Zerith-1's survival on the multi-terrain test and down the platforms, beside the
@@ -25,8 +26,8 @@
    the scale at which each agent falls to 50%, and each HuRi-PPO pair's difference on the same robots under
    both readings of the forces on hands and feet (``benchmarks/force_magnitude.py`` measures them);
 11. ``band.png``: the IQR band in training, the shares of each rollout's states below, within and above it
-   and the mean beta, per run with a quantile critic (section 3 holds the percentile-band runs to literal
-   HuRi and PPO at equal steps).
+   and the mean beta, per run with a quantile critic (sections 3 and 7 hold the percentile-band runs to
+   literal HuRi and PPO at equal steps).
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.

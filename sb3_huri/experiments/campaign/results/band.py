@@ -1,6 +1,6 @@
 """The IQR band in training, for the results page: which risk levels each run's rollouts used (its own
 section), and the runs with the percentile band against the literal HuRi and PPO of their protocol and seed
-at equal steps (the early signal, in section 3).
+at equal steps (the early signal: Zerith-1's in section 3, the quadruped's in section 7).
 
 The band's shares, thresholds and mean risk level come from ``curve.csv`` (a row per rollout, written since
 the curve kept them: earlier rows are blank there); the robustness rows from ``robustness.csv``.
@@ -72,7 +72,10 @@ def band_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> 
 
 def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
     """Each percentile-band run beside the literal HuRi and PPO runs of its protocol, seed and preset at
-    equal steps: the early signal while it trains (in section 3, beside the robustness curves)."""
+    equal steps: the early signal while it trains (Zerith-1's in section 3, beside the robustness curves;
+    the quadruped's in section 7). The last figure is the Table-1 mean of the robustness rows for Zerith-1,
+    the robots' mean terrain level for the quadruped (whose robustness, the platforms, is evaluated at the
+    end only)."""
     lines = []
     for run, run_entries in runs_of(entries).items():
         first = run_entries[0]
@@ -87,32 +90,38 @@ def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]
             )
             for method in (LITERAL, BASELINE)
         }
+        on_tiles = first.protocol == "quadruped"
+        progress = (
+            "the robots' mean terrain level (the curriculum's, from the curve)"
+            if on_tiles
+            else "the Table-1 mean of the robustness rows (50 robots per case)"
+        )
         lines += [
             f"**{', '.join(e.name for e in run_entries)}** against "
             + " and ".join(f"`{link(peer, out)}` ({method_label(m)})" for m, peer in peers.items() if peer)
-            + " at equal steps: training return, episode length (steps of 20 ms), fall rate and the Table-1 "
-            "mean of the robustness rows (50 robots per case), then the percentile run's band shares.",
+            + f" at equal steps: training return, episode length (steps of 20 ms), fall rate and {progress}, "
+            "then the percentile run's band shares.",
             "",
-            "| steps | return: percentile / HuRi / PPO | length | fall rate | Table-1 mean (rows) "
-            "| seeking / neutral / averse |",
+            "| steps | return: percentile / HuRi / PPO | length | fall rate | "
+            + ("terrain level" if on_tiles else "Table-1 mean (rows)")
+            + " | seeking / neutral / averse |",
             "|---|---|---|---|---|---|",
         ]
+        columns = [("ep_return", ".0f"), ("ep_len", ".0f"), ("fall_rate", ".2f")]
+        if on_tiles:
+            columns.append(("terrain_level", ".2f"))
         curves = {m: read_curve(peer) if peer else [] for m, peer in peers.items()}
         robustness = {m: read_rows(peer) if peer else {} for m, peer in peers.items()}
         own_rows = read_rows(run)
         for step in marks:
             figures = [_window(own, step)] + [_window(curves[m], step) for m in peers]
-            table1 = [_row_near(own_rows, step)] + [_row_near(robustness[m], step) for m in peers]
-            lines.append(
-                f"| {step / 1e6:.0f}M | "
-                + " | ".join(
-                    " / ".join(_number(f.get(column, math.nan), fmt) for f in figures)
-                    for column, fmt in (("ep_return", ".0f"), ("ep_len", ".0f"), ("fall_rate", ".2f"))
-                )
-                + " | "
-                + " / ".join(_table1_cell(row, step) for row in table1)
-                + f" | {_shares(figures[0])} |"
-            )
+            cells = [
+                " / ".join(_number(f.get(column, math.nan), fmt) for f in figures) for column, fmt in columns
+            ]
+            if not on_tiles:
+                table1 = [_row_near(own_rows, step)] + [_row_near(robustness[m], step) for m in peers]
+                cells.append(" / ".join(_table1_cell(row, step) for row in table1))
+            lines.append(f"| {step / 1e6:.0f}M | " + " | ".join(cells) + f" | {_shares(figures[0])} |")
         lines.append("")
     return lines
 

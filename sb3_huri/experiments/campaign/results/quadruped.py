@@ -11,6 +11,7 @@ import numpy as np
 
 from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.campaign.queue import CampaignEntry
+from sb3_huri.experiments.campaign.results.band import early_signal_lines
 from sb3_huri.experiments.campaign.results.evaluations import (
     Evaluated,
     method_label,
@@ -64,7 +65,8 @@ def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
 def quadruped_section(
     entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated], figures: Path, out: Path
 ) -> list[str]:
-    """Section 7: the quadruped's runs (Fig. 10 analog) and final evaluations (Table 8 analog)."""
+    """Section 7: the quadruped's runs (Fig. 10 analog), the percentile-band runs against HuRi and PPO at
+    equal steps while they train, and the final evaluations (Table 8 analog)."""
     entries = [entry for entry in entries if entry.protocol == "quadruped"]
     if not entries:
         return []
@@ -82,7 +84,7 @@ def quadruped_section(
         lines += figure_lines(path, out)
     else:
         lines += ["No quadruped run has a learning curve yet.", "", *figure_lines(path, out, drawn=False)]
-    return [*lines, *_table8(evaluations, out)]
+    return [*lines, *early_signal_lines(entries, out), *_table8(evaluations, out)]
 
 
 def _label(entry: CampaignEntry) -> str:
