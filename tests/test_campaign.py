@@ -27,6 +27,9 @@ from sb3_huri.zoo import read_preset
 
 
 def _queue(folder: Path, entries: list[dict], **defaults) -> Path:
+    """A queue file of `entries`; without analyses after the final evaluation unless `defaults` names them
+    (tests/test_campaign_analyses.py measures them)."""
+    defaults.setdefault("analyses", [])
     path = folder / "campaign.yml"
     path.write_text(yaml.safe_dump({"defaults": defaults, "entries": entries}))
     return path

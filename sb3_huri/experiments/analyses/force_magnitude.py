@@ -314,10 +314,12 @@ def measure_agent(
     robots: int = DEFAULT_ROBOTS,
     seed: int = DEFAULT_SEED,
     episode_steps: int | None = None,
+    deadline: float | None = None,
 ) -> Path:
     """Measure the agent of ``run`` at ``steps`` (``checkpoint_files``) in every case, scale and reading not
     measured yet; return its file's path. ``robots`` episodes per case and scale, robot i seeded ``seed + i``;
-    ``episode_steps``: the time limit (default the env's, 20 s). A file of other settings is refused
+    ``episode_steps``: the time limit (default the env's, 20 s); ``deadline`` (``time.time()``): start no
+    case-scale after it (the rest is measured by the next call). A file of other settings is refused
     (ExperimentError) rather than overwritten."""
     from sb3_huri.runner.folder import load_checkpoint
     from zerith_gym.task import EPISODE_STEPS
@@ -337,6 +339,8 @@ def measure_agent(
         if model.num_timesteps != measured:
             raise ExperimentError(f"{run}: its model at {measured:,} steps holds {model.num_timesteps:,}")
     for reading, case, scale in todo:
+        if deadline is not None and time.time() >= deadline:
+            break
         began = time.process_time()
         result = evaluate(
             model, normalizer, stressed(case, scale, reading), None, robots, seed,

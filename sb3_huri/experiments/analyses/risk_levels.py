@@ -207,13 +207,15 @@ def measure_risk_levels(
     robots: int = DEFAULT_ROBOTS,
     seed: int = DEFAULT_SEED,
     episode_steps: int | None = None,
+    deadline: float | None = None,
 ) -> Path:
     """Measure the agent of ``run`` case by case (see the module docstring); return its file's path.
 
     ``steps``: the checkpoint (``choose_checkpoint``); ``cases``: ``scenario@vx`` or ``scenario`` (default:
     ``default_cases``); ``robots`` episodes per case, robot i seeded ``seed + i``; ``episode_steps``: the time
-    limit (default the env's, 20 s). Cases already in the file with the same settings are skipped; a file of
-    other settings is refused (ExperimentError) rather than overwritten.
+    limit (default the env's, 20 s); ``deadline`` (``time.time()``): start no case after it. Cases already in
+    the file with the same settings are skipped; a file of other settings is refused (ExperimentError)
+    rather than overwritten.
     """
     from zerith_gym import robot_of
 
@@ -234,6 +236,8 @@ def measure_risk_levels(
     for case in wanted:
         if case in record["cases"]:
             continue
+        if deadline is not None and time.time() >= deadline:
+            break
         began = time.time()
         name, command = parse_case(case)
         result = evaluate(

@@ -13,6 +13,7 @@ to 150M, later on to 285M)::
       eval_episodes: 100         # the final evaluation: robots per case, seeds eval_seed + i
       eval_seed: 2000
       episode_steps: 1000        # 20 s evaluation episodes
+      analyses: [risk_levels, force_magnitude]  # measured after the final evaluation; [] for none
     entries:
       - name: robust-huri-s0     # unique
         protocol: robust         # one of PROTOCOLS (below)
@@ -23,8 +24,9 @@ to 150M, later on to 285M)::
         steps: 156732992         # train until at least this many steps, then evaluate
         hyperparams: {n_envs: 256, n_steps: 64}  # optional: preset entries replaced, as rl_zoo3 -params
 
-An entry is *done* when its run has trained that far and an evaluation written for the entry exists in
-``<run>/evaluations/``. Nothing else is stored: the run folders are the campaign's state.
+An entry is *done* when its run has trained that far, an evaluation written for the entry exists in
+``<run>/evaluations/`` and the analyses of ``sb3_huri.experiments.campaign.analyses`` hold every case
+beside it. Nothing else is stored: the run folders are the campaign's state.
 """
 
 from __future__ import annotations
@@ -50,6 +52,8 @@ learns per sample as the 32-robot one does), the paper's (train at its Table-5 r
 distribution), the paper's terrain training (its appendix A.7), and the paper's quadruped (its appendix
 A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms). Entries pair and average only
 within a protocol."""
+ANALYSES = ("risk_levels", "force_magnitude")
+"""What an entry can be measured on after its final evaluation (``campaign.analyses``)."""
 PROTOCOL_ENVS = {"quadruped": GO2LIKE_ID}
 """The env a protocol trains on where it is not ``ZERITH1_ID``."""
 
@@ -65,6 +69,9 @@ class QueueDefaults:
     eval_seed: int = 2000
     episode_steps: int = 1000
     """Control steps of an evaluation episode (20 s, as the paper's tests), robustness rows included."""
+    analyses: tuple[str, ...] = ANALYSES
+    """What each entry is measured on after its final evaluation, at the evaluated checkpoint: its critic's
+    risk levels per scenario and its survival over force magnitude (``campaign.analyses``)."""
 
 
 @dataclass(frozen=True)
@@ -100,11 +107,16 @@ class CampaignEntry:
         return None
 
     def state(self) -> str:
-        """``done``, ``evaluate`` (trained, not yet evaluated), ``train`` (more steps to go) or ``new``."""
+        """``done``, ``measure`` (evaluated, its analyses not complete), ``evaluate`` (trained, not yet
+        evaluated), ``train`` (more steps to go) or ``new``."""
+        from sb3_huri.experiments.campaign.analyses import pending
+
         steps = self.trained_steps()
         if steps < self.steps:
             return "train" if steps else "new"
-        return "done" if self.evaluation() is not None else "evaluate"
+        if self.evaluation() is None:
+            return "evaluate"
+        return "measure" if pending(self) else "done"
 
 
 _REQUIRED = ("name", "protocol", "method", "seed", "run", "conf", "steps")
@@ -173,14 +185,30 @@ def load_queue(path: str | Path) -> list[CampaignEntry]:
         raise ExperimentError(f"{path} is not valid YAML: {error}") from None
     if not isinstance(data, dict) or not isinstance(data.get("entries"), list):
         raise ExperimentError(f"{path}: a queue file is a mapping with a list under `entries:`")
-    known = {f.name for f in fields(QueueDefaults)}
-    raw_defaults = data.get("defaults") or {}
-    if not isinstance(raw_defaults, dict) or set(raw_defaults) - known:
-        raise ExperimentError(f"{path}: `defaults:` takes {', '.join(sorted(known))}")
-    defaults = QueueDefaults(**{key: int(float(value)) for key, value in raw_defaults.items()})
+    defaults = _defaults(data.get("defaults") or {}, path)
     entries = [_entry(raw, i, path.parent, defaults, path) for i, raw in enumerate(data["entries"])]
     names = [entry.name for entry in entries]
     duplicated = sorted({name for name in names if names.count(name) > 1})
     if duplicated:
         raise ExperimentError(f"{path}: entry names must be unique; repeated: {', '.join(duplicated)}")
     return entries
+
+
+def _defaults(raw: Any, path: Path) -> QueueDefaults:
+    """The queue's ``defaults:``; ExperimentError saying what is allowed otherwise."""
+    known = {f.name for f in fields(QueueDefaults)}
+    if not isinstance(raw, dict) or set(raw) - known:
+        raise ExperimentError(f"{path}: `defaults:` takes {', '.join(sorted(known))}")
+    analyses = raw.get("analyses", ANALYSES)
+    if not isinstance(analyses, list | tuple) or set(analyses) - set(ANALYSES):
+        raise ExperimentError(
+            f"{path}: `defaults: analyses:` is a list of {', '.join(ANALYSES)} ([] for none), "
+            f"got {analyses!r}"
+        )
+    try:
+        numbers = {key: int(float(value)) for key, value in raw.items() if key != "analyses"}
+    except (TypeError, ValueError) as error:
+        raise ExperimentError(
+            f"{path}: `defaults:` {', '.join(sorted(known - {'analyses'}))} are numbers ({error})"
+        ) from None
+    return QueueDefaults(**numbers, analyses=tuple(analyses))

@@ -10,11 +10,13 @@ second on 2 cores than one training of both: ``benchmarks/bench_core_split.py``)
 the queue's order, skipping those done, and never starts an entry while an earlier entry of the same run
 folder is unfinished (the folder trains to 157M and is evaluated there before it trains on). An entry
 trains with ``sb3_huri.runner.training.train_run`` up to its steps, with a robustness row every
-``robustness_every`` steps, then is evaluated once (``final_evaluation.evaluate_entry``). Each child logs
+``robustness_every`` steps, then is evaluated once (``final_evaluation.evaluate_entry``) and measured on
+the queue's analyses (``campaign.analyses``: risk levels, survival over force magnitude). Each child logs
 to ``<run>/train.log``.
 
 SIGTERM or Ctrl-C to the campaign stops every child after the rollout under way, with a checkpoint; so
-does ``--max-wall-minutes``. The same command continues every entry from its newest checkpoint.
+does ``--max-wall-minutes`` (analyses start no case after it; an evaluation or analysis under a signal
+stops at once, keeping the cases it wrote). The same command continues every entry where it stopped.
 """
 
 from __future__ import annotations
@@ -44,13 +46,17 @@ made for one that fails every time."""
 
 
 def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: int | None = None) -> str:
-    """Train `entry` up to its steps (resuming its run), then evaluate it; returns its state afterwards.
+    """Train `entry` up to its steps (resuming its run), evaluate it, then measure its analyses
+    (``campaign.analyses``); returns its state afterwards.
 
-    A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued."""
+    A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued; analyses
+    cut by the wall time leave it at ``measure``."""
+    from sb3_huri.experiments.campaign import analyses
     from sb3_huri.experiments.campaign.final_evaluation import evaluate_entry
     from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
     from sb3_huri.zoo import read_preset
 
+    deadline = None if max_wall_s is None else time.time() + max_wall_s
     if entry.state() in ("new", "train"):
         defaults = entry.defaults
         request = RunRequest(
@@ -71,6 +77,8 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
         train_run(request, options)
     if entry.state() == "evaluate":
         evaluate_entry(entry, workers=workers, episode_steps=entry.defaults.episode_steps)
+    if entry.state() == "measure":
+        analyses.measure(entry, deadline)
     return entry.state()
 
 

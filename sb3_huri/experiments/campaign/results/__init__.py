@@ -15,7 +15,7 @@
 6. ``risk.png``: the critic's IQR and beta on the plane, under a push and on uneven ground (Fig. 5 analog);
 6b. the risk levels each HuRi-family agent sets on the states it visits, per scenario: the shares of states
    below, within and above its IQR band, mean beta and beta_RND, and whether the paper's order holds
-   (``benchmarks/risk_levels.py`` measures them);
+   (the campaign measures them after each final evaluation, ``benchmarks/risk_levels.py`` by hand);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
    against HuRi and PPO at equal steps while they train, and its Table 8 analog;
 8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
@@ -24,7 +24,8 @@
    paper's Table 9, and the HuRi-PPO pairs on these cases, on the same robots;
 10. ``force_magnitude.png``: Zerith-1's survival over the force's magnitude, 0.1x to 1.5x of the paper's,
    the scale at which each agent falls to 50%, and each HuRi-PPO pair's difference on the same robots under
-   both readings of the forces on hands and feet (``benchmarks/force_magnitude.py`` measures them);
+   both readings of the forces on hands and feet (measured as the risk levels are, or by
+   ``benchmarks/force_magnitude.py``);
 11. ``band.png``: the IQR band in training, the shares of each rollout's states below, within and above it
    and the mean beta, per run with a quantile critic (sections 3 and 7 hold the percentile-band runs to
    literal HuRi and PPO at equal steps).

@@ -56,7 +56,8 @@ def force_magnitude_section(evaluations: Sequence[Evaluated], figures: Path, out
     lines = [
         "## 10. Survival over force magnitude",
         "",
-        "Each evaluated Zerith-1 agent (the checkpoint of its final evaluation) in the six Table-1 cases and "
+        "Each evaluated Zerith-1 agent (the checkpoint of its final evaluation, measured by the campaign "
+        "after that evaluation or by `benchmarks/force_magnitude.py`) in the six Table-1 cases and "
         "Fig. 4's load, friction and load-friction cases, with the disturbance at s times the paper's: in "
         "Table 1 the force's magnitude (U[0, 100 s] N redrawn every 0.1 s; U[150 s, 200 s] N every 2 s), "
         "Table 5's test load, friction and CoM ranges kept; in Fig. 4's cases the force (U[0, 100 s] N "

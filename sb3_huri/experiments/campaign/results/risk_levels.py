@@ -215,7 +215,8 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
     lines = [
         "## 6b. Risk levels in use: the IQR band's shares, beta and beta_RND",
         "",
-        f"`{SCRIPT}` runs each HuRi-family agent (its method reads the critic's IQR band) on the same few "
+        "The campaign measures each HuRi-family agent (its method reads the critic's IQR band) after its "
+        f"final evaluation (`{SCRIPT}` does it by hand), on the same few "
         "robots per case, one 20-s episode each with the deterministic policy, and reads every state a "
         "robot visits before its episode ends. The shares: states whose critic IQR is below the agent's "
         "own band (beta_IQR = -1, risk-seeking for Wang), within it (0) or above it (+1, risk-averse), "
@@ -234,7 +235,7 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
     sentences, unmeasured, untrained, measured = [], [], [], []
     for entry in family:
         path = entry_file(entry, entries)
-        if path is None and entry.state() in ("done", "evaluate"):
+        if path is None and entry.state() in ("done", "measure", "evaluate"):
             unmeasured.append(f"- {entry.name} ({entry.method}): {_command(entry)}")
         elif path is None:
             untrained.append(entry.name)
@@ -250,8 +251,8 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
         lines += ["Not measured yet (each command measures the entry's checkpoint):", "", *unmeasured, ""]
     if untrained:
         lines += [
-            "Not trained to their steps yet (the same command, with the entry's run and steps, measures "
-            f"each once it is): {', '.join(untrained)}.",
+            "Not trained to their steps yet (the campaign measures each after its final evaluation): "
+            f"{', '.join(untrained)}.",
             "",
         ]
     return lines

@@ -43,11 +43,15 @@ def findings_section(
     findings (lines of the list) of other robots' sections."""
     lines = ["## What the numbers show, and what they do not", ""]
     states = {entry.name: entry.state() for entry in entries}
-    done = [name for name, state in states.items() if state == "done"]
+    done = [name for name, state in states.items() if state in ("done", "measure")]
     lines.append(
         f"- {len(done)} of {len(entries)} entries evaluated" + (f": {', '.join(done)}." if done else ".")
     )
-    for state, words in (("train", "still training"), ("evaluate", "trained, waiting for their evaluation")):
+    for state, words in (
+        ("train", "still training"),
+        ("evaluate", "trained, waiting for their evaluation"),
+        ("measure", "evaluated, their risk levels or force-magnitude curves still being measured"),
+    ):
         names = [name for name, s in states.items() if s == state]
         if names:
             lines.append(f"- {words.capitalize()}: {', '.join(names)}.")
@@ -118,7 +122,8 @@ def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[in
             evaluated.data.get("wall_s", math.nan) / 3600,
             list(evaluated.data.get("hardware", [])),
         )
-        return run.timesteps, hours, hardware, f"done (evaluated at {evaluated.steps:,})"
+        words = "measuring its analyses" if state == "measure" else "done"
+        return run.timesteps, hours, hardware, f"{words} (evaluated at {evaluated.steps:,})"
     cases = _evaluating(entry)
     if state == "evaluate" and cases is not None:
         state = f"evaluating ({cases} of {len(evaluation_cases(entry))} cases)"
@@ -305,7 +310,7 @@ def _waiting_pairs(entries: Sequence[CampaignEntry]) -> list[str]:
             )
             if first.method != BASELINE and second.method == BASELINE and matched:
                 states = (first.state(), second.state())
-                if states != ("done", "done"):
+                if not {*states} <= {"done", "measure"}:
                     waiting.append(f"{first.name} ({states[0]}) with {second.name} ({states[1]})")
     return waiting
 
