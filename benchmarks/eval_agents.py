@@ -46,8 +46,14 @@ DEFAULT_CASES = (
     "nominal@0.5",
     "nominal@1.0",
     "train@0.5",
-    *(name for name in SCENARIOS if name not in ("train", "nominal", "robust", "terrain")),
+    *(
+        name
+        for name in SCENARIOS
+        if name not in ("train", "nominal", "robust", "terrain") and not name.startswith("quadruped-")
+    ),
 )
+"""The plane at two speeds, Zerith-1's training scenario, and every test scenario of Zerith-1 (not the
+quadruped's training conditions)."""
 
 
 def main() -> None:

@@ -23,6 +23,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
+from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.runner.build import resume_overrides
 from sb3_huri.runner.checkpoint import RunCheckpoint
 from sb3_huri.runner.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
@@ -45,12 +46,13 @@ def _train(*args: str) -> None:
 def test_a_run_resumes_from_its_newest_checkpoint_with_its_curve_state_and_stage(tmp_path):
     preset = tiny_robust_preset(tmp_path)
     _train("-conf", str(preset), "-f", str(tmp_path), "-n", "256", "--checkpoint-freq", "128", "--seed", "3")
-    run = tmp_path / "huri" / "Zerith1-v0_1"
+    run = tmp_path / DEFAULT_METHOD / "Zerith1-v0_1"
     first = RunState.read(run)
     assert first.timesteps == 256 and len(first.sessions) == 1 and first.sessions[0]["to_timesteps"] == 256
     assert first.curriculum_stage is not None and first.curriculum_stage >= 1
     saved = HuRiPPO.load(run / "Zerith1-v0.zip")
     assert saved.num_timesteps == 256 and saved.desired_kl == 0.007
+    assert saved.method == DEFAULT_METHOD  # the run folder is named after the method it trains
 
     with (run / "curve.csv").open("a") as file:  # a row that a stopped session wrote after its checkpoint
         file.write("320" + ",0" * (len(CURVE_COLUMNS) - 1) + "\n")
@@ -118,7 +120,7 @@ def test_a_curve_of_fewer_columns_takes_todays_header_and_keeps_its_rows(tmp_pat
 def test_random_states_come_back_from_a_checkpoint(tmp_path):
     preset = tiny_robust_preset(tmp_path)
     _train("-conf", str(preset), "-f", str(tmp_path), "-n", "64", "--checkpoint-freq", "64")
-    run = tmp_path / "huri" / "Zerith1-v0_1"
+    run = tmp_path / DEFAULT_METHOD / "Zerith1-v0_1"
     assert restore_random_states(run)
     expected = (th.rand(3), np.random.rand(3))  # noqa: NPY002 (the global state SB3 uses)
     restore_random_states(run)
@@ -172,7 +174,7 @@ def test_a_resumed_terrain_run_starts_its_robots_on_their_saved_levels(tmp_path)
     path = tmp_path / "terrain.yml"
     path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
     _train("-conf", str(path), "-f", str(tmp_path), "--checkpoint-freq", "48")
-    run = tmp_path / "huri" / "Zerith1-v0_1"
+    run = tmp_path / DEFAULT_METHOD / "Zerith1-v0_1"
     first = RunState.read(run)
     assert first.terrain_levels == [0, 0, 0, 1, 1, 1]  # the start levels: 3 kinds, robots 3-5 a level up
     state_file = run / "Zerith1-v0" / "state.json"
@@ -251,7 +253,7 @@ def test_a_sigterm_to_the_whole_process_group_still_ends_with_a_checkpoint(tmp_p
     command = [*TRAIN, "-conf", str(preset), "-f", str(tmp_path), "-n", "10000000", "--workers", "1"]
     command += ["--checkpoint-freq", "128", "--seed", "3"]
     job = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    run = tmp_path / "huri" / "Zerith1-v0_1"
+    run = tmp_path / DEFAULT_METHOD / "Zerith1-v0_1"
     try:
         deadline = time.monotonic() + 300
         while not (run / "Zerith1-v0" / "state.json").is_file():

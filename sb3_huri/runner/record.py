@@ -11,7 +11,8 @@ writes, in ``<run>/evaluations/``::
                                    to that step, and per case the metrics of ``evaluate`` with each robot's
                                    outcome (``survived``: 1/0, ``fall_step``: the control step of its fall
                                    or null)
-    <steps>-risk_<case>.npz        the critic's trace along robot 0's episode in the risk cases (Fig. 5)
+    <steps>-risk_<case>.npz        the critic's trace along robot 0's episode in the risk cases (Fig. 5;
+                                   ``@`` in a case's name written ``-``)
 
 While it runs, the cases done so far are kept in ``<steps>.json.partial`` (written atomically after each
 case), which a later call with the same header continues from; the ``.json`` appears, whole, when the last

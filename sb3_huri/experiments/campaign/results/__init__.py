@@ -2,7 +2,7 @@
 
 ``write_results`` reads the queue file (``sb3_huri.experiments.campaign.queue``), each entry's run folder
 (``state.json``, ``curve.csv``, ``robustness.csv``, ``config.yml``) and the final evaluations written by
-``sb3_huri.experiments.campaign.final_evaluation``, and writes the page with four figures beside it
+``sb3_huri.experiments.campaign.final_evaluation``, and writes the page with its figures beside it
 (``docs/results/``):
 
 1. the campaign's status: every entry's steps, training hours, hardware and state;
