@@ -338,6 +338,12 @@ def test_the_page_section_says_its_reading_and_renders_the_same_figure_twice(tmp
         "**The order depends on the reading** (Table-1 mean at 1x, point estimates): Baseline (PPO) ahead "
         "under test:pair:hold5; HuRi ahead under test:per-body:hold5."
     ) in page
+    # Every reading of each agent: PPO's per-body Table-1 mean at 1x averages, per robot, the centroid cases
+    # (the headline's outcomes, all alive) with the hands' and feet's per-body outcomes [0, 1, 0, 1].
+    per_body = np.mean([np.mean([1, 1, *[alive] * 4]) for alive in (0, 1, 0, 1)])
+    ppo_readings = next(line for line in lines if line.startswith("| ppo-s0 @ 0.0M | 1.000 |"))
+    assert ppo_readings == f"| ppo-s0 @ 0.0M | 1.000 | - | {per_body:.3f} | - | - | - |"
+    assert "`test:per-body:hold5`: a force per hand / foot, 0.1-s pushes" in page
     assert "![force_magnitude](results/force_magnitude.png)" in page
     figure = figures / "force_magnitude.png"
     content, written = figure.read_bytes(), figure.stat().st_mtime_ns

@@ -50,8 +50,9 @@ PER_BODY, SHORT_PUSH = Reading(per_body=True), Reading(hold_steps=1)
 
 
 def force_magnitude_section(evaluations: Sequence[Evaluated], figures: Path, out: Path) -> list[str]:
-    """Section 10: the 50% scales of every measured agent, each pair's differences under each reading, and
-    the figure of the curves and the pairs' differences."""
+    """Section 10: the 50% scales of every measured agent, its Table-1 mean at 1x under each reading
+    measured, each pair's differences under each reading, and the figure of the curves and the pairs'
+    differences."""
     path = figures / FIGURE
     lines = [
         "## 10. Survival over force magnitude",
@@ -80,6 +81,7 @@ def force_magnitude_section(evaluations: Sequence[Evaluated], figures: Path, out
         lines += ["No agent is measured yet (`benchmarks/force_magnitude.py`).", ""]
         return [*lines, *figure_lines(path, out, drawn=False)]
     lines += _half_table(shown, records)
+    lines += _readings_table(shown, records)
     lines += _substitutes(evaluations, records)
     found = [(a, b) for a, b in pairs(evaluations) if id(a) in records and id(b) in records]
     for first, second in found:
@@ -121,6 +123,29 @@ def _half_table(shown: Sequence[Evaluated], records: dict[int, dict[str, Any]]) 
             at_paper = survived(record, HEADLINE, case).get(PAPER_SCALE)
             cells.append(_half(record, case) + (f" ({at_paper.mean():.2f})" if at_paper is not None else ""))
         lines.append(f"| {evaluated.label} | {record['steps']:,} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def _readings_table(shown: Sequence[Evaluated], records: dict[int, dict[str, Any]]) -> list[str]:
+    """Each agent's Table-1 mean at 1x under every reading measured: how much the reading moves it."""
+    readings = (*READINGS, *NOMINAL_READINGS)
+    means = {
+        id(e): [table1_robot_means(records[id(e)], reading, PAPER_SCALE) for reading in readings]
+        for e in shown
+    }
+    rows = [e for e in shown if sum(m is not None for m in means[id(e)]) > 1]
+    if not rows:
+        return []
+    lines = [
+        "**Every reading, each agent** (the Table-1 mean at 1x, on the same robots as above; `-`: not "
+        "measured): " + "; ".join(f"`{reading.key}`: {reading.label}" for reading in readings) + ".",
+        "",
+        "| agent | " + " | ".join(f"`{reading.key}`" for reading in readings) + " |",
+        "|---|" + "---|" * len(readings),
+    ]
+    for evaluated in rows:
+        cells = ["-" if m is None else f"{m.mean():.3f}" for m in means[id(evaluated)]]
+        lines.append(f"| {evaluated.label} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 
 
