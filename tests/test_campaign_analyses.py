@@ -97,7 +97,7 @@ def test_a_queue_without_analyses_is_done_at_its_evaluation(tmp_path):
     assert not list((entry.run / "evaluations").glob("*-*.json"))
 
 
-@pytest.mark.parametrize("value", [["risk"], "force_magnitude", {"a": 1}])
+@pytest.mark.parametrize("value", [["risk"], "force_magnitude", {"a": 1}, [{"risk_levels": 1}]])
 def test_the_queues_analyses_name_known_ones(tmp_path, value):
     with pytest.raises(ExperimentError, match="analyses:` is a list of risk_levels, force_magnitude"):
         load_queue(_queue(tmp_path, analyses=value))

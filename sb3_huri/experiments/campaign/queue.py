@@ -200,7 +200,7 @@ def _defaults(raw: Any, path: Path) -> QueueDefaults:
     if not isinstance(raw, dict) or set(raw) - known:
         raise ExperimentError(f"{path}: `defaults:` takes {', '.join(sorted(known))}")
     analyses = raw.get("analyses", ANALYSES)
-    if not isinstance(analyses, list | tuple) or set(analyses) - set(ANALYSES):
+    if not isinstance(analyses, list | tuple) or not all(name in ANALYSES for name in analyses):
         raise ExperimentError(
             f"{path}: `defaults: analyses:` is a list of {', '.join(ANALYSES)} ([] for none), "
             f"got {analyses!r}"
