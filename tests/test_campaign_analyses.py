@@ -12,6 +12,7 @@ import pytest
 import yaml
 from huri_helpers import tiny_robust_preset
 
+from sb3_huri.experiments.analyses import risk_levels
 from sb3_huri.experiments.analyses.force_magnitude import HEADLINE, Reading, result_path
 from sb3_huri.experiments.analyses.risk_levels import risk_levels_path
 from sb3_huri.experiments.campaign import analyses
@@ -60,6 +61,7 @@ def test_an_entry_is_measured_after_its_evaluation_and_a_cut_measurement_goes_on
     assert run_entry(huri, workers=0) == "done" and analyses.pending(huri) == []
     risk = json.loads(risk_levels_path(huri.run, 64).read_text())
     assert risk["steps"] == 64 and len(risk["cases"]) >= 4
+    assert set(risk["cases"]) == risk_levels.measured_cases(risk)  # the falls' statistics too
     assert risk["settings"]["episode_steps"] == EPISODE_STEPS
     force = json.loads(result_path(huri.run, 64).read_text())
     measured = {key: {case: sorted(scales) for case, scales in cases.items()}

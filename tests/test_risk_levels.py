@@ -100,7 +100,9 @@ def test_the_shares_are_the_bands_definition_on_the_states_visited(run: Path) ->
     for case in ("nominal@1", "sudden-centroid"):
         # The same robots again, read state by state: the band's definition applied here to the IQRs.
         name, command = analysis.parse_case(case)
-        result = evaluate(model, None, name, command, 2, 11, episode_steps=EPISODE_STEPS, risk_states=True)
+        result = evaluate(
+            model, None, name, command, 2, 11, episode_steps=EPISODE_STEPS, risk_states=True, per_robot=True
+        )
         states: RiskStates = result["states"]
         iqr = states.iqr.astype(np.float64)
         below = (states.risk_iqr == -1).mean()
@@ -117,6 +119,18 @@ def test_the_shares_are_the_bands_definition_on_the_states_visited(run: Path) ->
         assert measured["beta_rnd_above_half"] == np.mean(states.risk_rnd > 0.5)
         assert measured["iqr_median"] == pytest.approx(np.median(iqr), abs=1e-6)
         assert measured["survive"] == result["survive"]
+        # Each state's robot and step: a robot's steps run from 0 to its fall, or to the time limit.
+        fall = result["fall_step"]
+        for robot in range(2):
+            length = EPISODE_STEPS if np.isnan(fall[robot]) else int(fall[robot]) + 1
+            assert states.step[states.robot == robot].tolist() == list(range(length))
+        before = np.array(
+            [not np.isnan(fall[r]) and fall[r] - s < analysis.FALL_WINDOW_STEPS
+             for r, s in zip(states.robot, states.step, strict=True)]
+        )  # fmt: skip
+        assert measured["falls"] == np.count_nonzero(~np.isnan(fall))
+        assert measured["before_fall_states"] == before.sum()
+        assert measured["beta_elsewhere"] == pytest.approx(states.risk[~before].astype(float).mean())
     shares = [data["cases"][case][side] for case in data["cases"] for side in ("below", "within", "above")]
     assert sum(share > 0 for share in shares) >= 3  # states on several sides of the band: a real check
 
@@ -192,6 +206,26 @@ def test_case_statistics_counts_the_band_edges_as_within() -> None:
     assert statistics["iqr_median"] == pytest.approx(0.5)
 
 
+def test_fall_statistics_hold_the_last_second_before_each_fall_against_the_rest() -> None:
+    """Robot 0 falls at step 60 (61 states: the last 50 are before its fall), robot 1 never (70 states)."""
+    robot = np.concatenate([np.zeros(61, dtype=int), np.ones(70, dtype=int)])
+    step = np.concatenate([np.arange(61), np.arange(70)])
+    iqr = np.where(robot == 0, step / 60.0, 0.2).astype(np.float32)  # rises towards robot 0's fall
+    risk = np.where(iqr > 0.7, 1.0, 0.0).astype(np.float32)
+    zeros = np.zeros_like(iqr)
+    states = RiskStates(risk, risk, zeros, iqr, zeros, robot, step)
+    statistics = analysis.fall_statistics(states, np.array([60.0, np.nan]), (0.3, 0.7))
+    before = (robot == 0) & (step > 60 - analysis.FALL_WINDOW_STEPS)
+    assert statistics["falls"] == 1 and statistics["before_fall_states"] == before.sum() == 50
+    assert statistics["above_before_fall"] == pytest.approx(np.mean(iqr[before] > 0.7))
+    assert statistics["above_elsewhere"] == pytest.approx(np.mean(iqr[~before] > 0.7)) == 0.0
+    assert statistics["beta_before_fall"] == pytest.approx(risk[before].mean())
+    survivors = analysis.fall_statistics(states, np.array([np.nan, np.nan]), (0.3, 0.7))
+    assert survivors["falls"] == 0 and survivors["beta_before_fall"] is None
+    record = {"cases": {"a": statistics, "b": {key: 0 for key in statistics if key != "falls"}}}
+    assert analysis.measured_cases(record) == {"a"}  # a file measured before the falls' keys: measured again
+
+
 def _case(beta: float, rnd: float = 0.05, p90: float = 0.08, high: float = 0.0) -> dict:
     return {
         "below": 0.5, "within": 0.3, "above": 0.2, "beta": beta, "beta_iqr": beta - rnd, "beta_rnd": rnd,
@@ -226,6 +260,33 @@ def test_the_order_sentence_says_whether_uneven_beats_push_beats_plane() -> None
     missing = _data(-0.9, -0.2, 0.4)
     del missing["cases"]["uneven"]
     assert order_sentence(missing) == "the paper's order cannot be read: `uneven` not measured"
+
+
+def test_the_fall_sentence_pools_the_cases_where_robots_fell() -> None:
+    from sb3_huri.experiments.campaign.results.risk_levels import fall_sentence
+
+    data = _data(-0.5, 0.5, 0.0)
+    assert fall_sentence(data) == "before a fall: not measured in this file"
+    falls = dict(falls=0, before_fall_states=0, beta_before_fall=None, above_before_fall=None)
+    for case in data["cases"].values():
+        case.update(falls, beta_elsewhere=0.0, above_elsewhere=0.0)
+    assert fall_sentence(data) == "no robot fell in the 3 cases measured"
+    data["cases"]["sudden-centroid"].update(
+        falls=2, before_fall_states=100, beta_before_fall=0.9, above_before_fall=0.8, beta_elsewhere=0.1,
+        above_elsewhere=0.2,
+    )  # fmt: skip
+    data["cases"]["uneven"].update(
+        falls=1, before_fall_states=50, beta_before_fall=0.3, above_before_fall=0.2, beta_elsewhere=-0.5,
+        above_elsewhere=0.0,
+    )  # fmt: skip
+    # Pooled by states: 100 and 50 before the falls; 4,900 and 4,950 other states (5,000 read per case).
+    before = (100 * 0.9 + 50 * 0.3) / 150, (100 * 0.8 + 50 * 0.2) / 150
+    other = (4900 * 0.1 + 4950 * -0.5) / 9850, (4900 * 0.2) / 9850
+    assert fall_sentence(data) == (
+        f"in the last 1 s before its robots' 3 falls (2 cases), mean beta {before[0]:+.2f} and "
+        f"{before[1]:.0%} of the states above the band, against {other[0]:+.2f} and {other[1]:.0%} over "
+        "the other states of those cases"
+    )
 
 
 def test_the_rnd_sentence_tells_inert_small_saturated_and_moving_apart() -> None:

@@ -143,9 +143,10 @@ RISK_STATE_FIELDS = ("risk", "risk_iqr", "risk_rnd", "iqr", "rnd_error")
 
 @dataclass
 class RiskStates:
-    """The critic's view of every state a rollout visited: one entry per robot-step, robot by robot up to its
-    episode's end (a fall or the time limit), flattened to arrays of shape (robot-steps,) in the critic's
-    precision (float32), the precision ``RiskModel.assess`` compares the IQR with its band in."""
+    """The critic's view of every state a rollout visited: one entry per robot-step, step by step, of every
+    robot still in its episode (up to a fall or the time limit), flattened to arrays of shape
+    (robot-steps,) in the critic's precision (float32), the precision ``RiskModel.assess`` compares the IQR
+    with its band in; ``robot`` and ``step`` say whose state each entry is and when."""
 
     risk: np.ndarray
     """Risk level (Wang's beta; CVaR's alpha): ``risk_iqr + risk_rnd`` (CVaR: clipped to 1)."""
@@ -157,6 +158,10 @@ class RiskStates:
     """Interquartile range of the critic's return quantiles."""
     rnd_error: np.ndarray
     """RND novelty of the critic input (0 without RND)."""
+    robot: np.ndarray | None = None
+    """The robot (episode) index of each state."""
+    step: np.ndarray | None = None
+    """The control step of each state within its episode."""
 
 
 class _RiskRecorder:
@@ -167,7 +172,7 @@ class _RiskRecorder:
         self.trace: dict[str, list[Any]] = {"beta": [], "iqr": [], "atoms": [], "force": []}
         self.sums = np.zeros(3)  # beta, iqr, robot-steps
         self.states: dict[str, list[np.ndarray]] | None = (
-            {name: [] for name in RISK_STATE_FIELDS} if states else None
+            {name: [] for name in (*RISK_STATE_FIELDS, "robot", "step")} if states else None
         )
 
     def record(self, assessed: Any, alive: np.ndarray, force: float) -> None:
@@ -180,8 +185,10 @@ class _RiskRecorder:
         self.trace["atoms"].append(assessed.atoms[0] if first else np.full_like(assessed.atoms[0], np.nan))
         self.trace["force"].append(force if first else np.nan)
         if self.states is not None:
-            for name, values in self.states.items():
-                values.append(np.asarray(getattr(assessed, name))[alive])
+            for name in RISK_STATE_FIELDS:
+                self.states[name].append(np.asarray(getattr(assessed, name))[alive])
+            self.states["robot"].append(np.flatnonzero(alive))
+            self.states["step"].append(np.full(int(alive.sum()), len(self.trace["beta"]) - 1))
 
     def results(self) -> dict[str, Any]:
         """``beta`` and ``iqr`` (means over every robot-step), ``trace`` and, if kept, ``states``."""

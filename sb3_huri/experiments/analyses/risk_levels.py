@@ -14,7 +14,11 @@ one 20-s episode each, and reads every state a robot visits before its episode e
 - ``beta``, ``beta_iqr``, ``beta_rnd``: means of the risk level and its two parts (CVaR: ``alpha``);
   ``beta_rnd_p90``: the 90th percentile of ``beta_RND``; ``beta_rnd_above_half``: the share of states where
   ``beta_RND > 0.5``; ``rnd_error``: the mean normalized RND error;
-- ``iqr_median``; ``survive``: the share of robots without a fall; ``robot_steps``: the states read.
+- ``iqr_median``; ``survive``: the share of robots without a fall; ``robot_steps``: the states read;
+- ``falls``: the robots that fell; ``before_fall_states``, ``beta_before_fall``, ``above_before_fall``: the
+  states of a robot's last second before its fall (``FALL_WINDOW_STEPS``), their mean risk level and share
+  above the band, and ``beta_elsewhere``, ``above_elsewhere`` the same over the case's other states (None
+  where there are none): whether the critic turns averse where a fall follows.
 
 The cases: the plane at the test speed (``nominal@1``), the paper's Fig. 5 conditions (``ROLE_CASES``: for
 Zerith-1 sudden 150-200 N pushes on the centroid and uneven ground; for the quadruped Table 8's 0.40-m
@@ -66,6 +70,11 @@ range, vx up to 0.7 m/s), the reference for the novelty of the test command."""
 DEFAULT_ROBOTS = 5
 DEFAULT_SEED = 2000
 """The first robots of the campaign's final evaluation (``eval_seed``)."""
+FALL_WINDOW_STEPS = 50
+"""The states "before a fall": a robot's last 50 control steps (1 s) up to the step it fell at."""
+FALL_KEYS = ("falls", "before_fall_states", "beta_before_fall", "above_before_fall", "beta_elsewhere",
+             "above_elsewhere")  # fmt: skip
+"""What ``fall_statistics`` adds to a case (a file measured before it lacks them: measured again)."""
 RND_HIGH = 0.5
 """``beta_rnd_above_half`` counts the states whose ``beta_RND`` exceeds this."""
 
@@ -140,6 +149,33 @@ def case_statistics(states: RiskStates, thresholds: Sequence[float]) -> dict[str
         "rnd_error": float(np.mean(states.rnd_error, dtype=np.float64)),
         "iqr_median": float(np.median(iqr)),
     }
+
+
+def fall_statistics(states: RiskStates, fall_step: np.ndarray, thresholds: Sequence[float]) -> dict[str, Any]:
+    """The risk levels of the states within ``FALL_WINDOW_STEPS`` before a robot's fall (``fall_step``: each
+    robot's, NaN where none) against the case's other states: the module docstring's ``FALL_KEYS``."""
+    iqr = np.asarray(states.iqr)
+    to_fall = np.asarray(fall_step, dtype=float)[states.robot] - states.step
+    before = to_fall < FALL_WINDOW_STEPS  # NaN (no fall) compares False
+    above = iqr > np.asarray(thresholds, dtype=iqr.dtype)[1]
+    risk = np.asarray(states.risk, dtype=np.float64)
+
+    def mean(values: np.ndarray, where: np.ndarray) -> float | None:
+        return float(values[where].mean()) if where.any() else None
+
+    return {
+        "falls": int(np.count_nonzero(~np.isnan(np.asarray(fall_step, dtype=float)))),
+        "before_fall_states": int(before.sum()),
+        "beta_before_fall": mean(risk, before),
+        "above_before_fall": mean(above, before),
+        "beta_elsewhere": mean(risk, ~before),
+        "above_elsewhere": mean(above, ~before),
+    }
+
+
+def measured_cases(record: dict[str, Any]) -> set[str]:
+    """The cases of a risk-levels record that hold every statistic, those before a fall included."""
+    return {case for case, values in record["cases"].items() if all(key in values for key in FALL_KEYS)}
 
 
 def choose_checkpoint(run: Path, env_id: str, steps: int | None = None) -> tuple[int, Path, Path | None, str]:
@@ -233,8 +269,9 @@ def measure_risk_levels(
     record = _record(run, env_id, robot, scenario, model, model_file, steps, robots, seed, episode_steps)
     record = _resumed(path, record)
     print(f"{run}: {steps:,} steps ({why}), {record['band']['reading']} band {record['band']['thresholds']}")
+    done = measured_cases(record)
     for case in wanted:
-        if case in record["cases"]:
+        if case in done:
             continue
         if deadline is not None and time.time() >= deadline:
             break
@@ -242,10 +279,12 @@ def measure_risk_levels(
         name, command = parse_case(case)
         result = evaluate(
             model, normalizer, name, command, robots, seed, episode_steps=episode_steps, workers=0,
-            risk_states=True, robot=robot,
+            risk_states=True, robot=robot, per_robot=True,
         )  # fmt: skip
-        statistics = case_statistics(result["states"], record["band"]["thresholds"])
-        record["cases"][case] = {**statistics, "survive": result["survive"]}
+        thresholds = record["band"]["thresholds"]
+        statistics = case_statistics(result["states"], thresholds)
+        falls = fall_statistics(result["states"], result["fall_step"], thresholds)
+        record["cases"][case] = {**statistics, **falls, "survive": result["survive"]}
         record["eval_s"] += time.time() - began
         path.parent.mkdir(parents=True, exist_ok=True)
         write_json(path, record)
@@ -303,6 +342,8 @@ LINE_COLUMNS = (
     ("beta_rnd_p90", "RND_p90"),
     ("beta_rnd_above_half", "RND>0.5"),
     ("iqr_median", "IQR_med"),
+    ("above_before_fall", "ab<fall"),
+    ("above_elsewhere", "ab_else"),
     ("survive", "survive"),
 )
 """The printed columns of a case: statistic and header."""
@@ -310,7 +351,8 @@ LINE_COLUMNS = (
 
 def case_line(case: str, statistics: dict[str, Any]) -> str:
     """One case's statistics as a fixed-width line (``header_line``'s columns)."""
-    cells = (f"{statistics.get(key, math.nan):>8.3f}" for key, _ in LINE_COLUMNS)
+    values = (statistics.get(key) for key, _ in LINE_COLUMNS)
+    cells = (f"{math.nan if value is None else value:>8.3f}" for value in values)
     return f"{case:<24}" + " ".join(cells) + f" {statistics.get('robot_steps', 0):>8}"
 
 

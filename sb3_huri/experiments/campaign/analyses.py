@@ -81,7 +81,7 @@ def _complete(name: str, entry: CampaignEntry, steps: int) -> bool:
             return False
         scenario = risk_levels.training_scenario(entry.run, entry.env_id)
         wanted = risk_levels.default_cases(robot_of(entry.env_id), scenario)
-        return set(wanted) <= set(_read(path)["cases"])
+        return set(wanted) <= risk_levels.measured_cases(_read(path))
     path = force_magnitude.result_path(entry.run, steps)
     if not path.is_file():
         return False

@@ -1,14 +1,15 @@
 """Section 6b of the results page: the risk levels each HuRi-family agent sets on the states it visits.
 
 Every entry whose method has a quantile critic and reads the IQR band (``sb3_huri.huri.METHODS``: ``huri``,
-``huri-no-rnd``, ``huri-percentile``, ``huri-cvar``), Zerith-1's and the quadruped's, with the file
-``benchmarks/risk_levels.py`` wrote for its checkpoint (``sb3_huri.experiments.analyses.risk_levels``): per
-scenario the shares of visited states below / within / above the agent's own IQR band, the mean risk level
-and the mean and 90th percentile of its RND part; per agent whether the paper's order holds (Fig. 5: more
-risk-averse on uneven ground than under pushes, and under pushes than on the plane) and what its RND part
-does. An entry takes the file of its final evaluation's checkpoint, else the first one measured at or after
-its steps and before the next entry of its run. The entries without one are listed with the command that
-measures them.
+``huri-no-rnd``, ``huri-percentile``, ``huri-cvar``), Zerith-1's and the quadruped's, with the file the
+campaign (or ``benchmarks/risk_levels.py``) wrote for its checkpoint
+(``sb3_huri.experiments.analyses.risk_levels``): per scenario the shares of visited states below / within /
+above the agent's own IQR band, the mean risk level and the mean and 90th percentile of its RND part; per
+agent whether the paper's order holds (Fig. 5: more risk-averse on uneven ground than under pushes, and
+under pushes than on the plane), what its RND part does, and whether its critic turns averse in the last
+second before its robots' falls. An entry takes the file of its final evaluation's checkpoint, else the
+first one measured at or after its steps and before the next entry of its run. The entries without one are
+listed with the command that measures them.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_huri.experiments.analyses.risk_levels import (
+    FALL_WINDOW_STEPS,
     RND_HIGH,
     ROLE_CASES,
     ROLES,
@@ -29,6 +31,7 @@ from sb3_huri.experiments.analyses.risk_levels import (
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.markdown import millions
 from sb3_huri.runner.files import read_json
+from zerith_gym.robot import CONTROL_DT
 from zerith_gym.scenarios import TEST_COMMAND
 
 SCRIPT = "benchmarks/risk_levels.py"
@@ -138,6 +141,35 @@ def rnd_sentence(data: dict[str, Any]) -> str:
     return "; ".join(parts) + f"; {reading}"
 
 
+def fall_sentence(data: dict[str, Any]) -> str:
+    """Whether the critic turns averse before a fall: over the cases where a robot fell, the mean risk level
+    and the share of states above the band in the last second before each fall, against their other
+    states (pooled, each state weighing the same)."""
+    cases = [values for values in data["cases"].values() if "falls" in values]
+    if not cases:
+        return "before a fall: not measured in this file"
+    fell = [values for values in cases if values["falls"]]
+    if not fell:
+        return f"no robot fell in the {len(cases)} cases measured"
+    pooled = {}
+    for where, count in (("before_fall", "before_fall_states"), ("elsewhere", None)):
+        weights = [
+            values[count] if count else values["robot_steps"] - values["before_fall_states"]
+            for values in fell
+        ]
+        for key in ("beta", "above"):
+            pairs = [(w, values[f"{key}_{where}"]) for w, values in zip(weights, fell, strict=True) if w]
+            total = sum(w for w, _ in pairs)
+            pooled[key, where] = sum(w * v for w, v in pairs) / total if total else math.nan
+    falls = sum(values["falls"] for values in fell)
+    return (
+        f"in the last {FALL_WINDOW_STEPS * CONTROL_DT:g} s before its robots' {falls} falls ({len(fell)} "
+        f"cases), mean beta {pooled['beta', 'before_fall']:+.2f} and {pooled['above', 'before_fall']:.0%} of "
+        f"the states above the band, against {pooled['beta', 'elsewhere']:+.2f} and "
+        f"{pooled['above', 'elsewhere']:.0%} over the other states of those cases"
+    )
+
+
 def summary_lines(measured: Sequence[dict[str, Any]]) -> list[str]:
     """A line over the measured agents: the range of their shares of states below the band per role."""
     parts = []
@@ -197,9 +229,13 @@ def _agent_lines(entry: CampaignEntry, path: Path) -> tuple[list[str], list[str]
     note = "" if evaluated in (None, measured) else f" (its final evaluation: {millions(evaluated)})"
     sentence = (
         f"- {entry.name} at {millions(measured)}{note}: {order_sentence(data)}. {rnd_sentence(data)}. "
-        f"{data['settings']['robots']} robots per case."
+        f"{_sentence_start(fall_sentence(data))}. {data['settings']['robots']} robots per case."
     )
     return rows, [sentence]
+
+
+def _sentence_start(text: str) -> str:
+    return text[:1].upper() + text[1:]
 
 
 def _command(entry: CampaignEntry) -> str:
@@ -224,7 +260,9 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
         "percentile band: percentiles of recent rollouts' IQRs, frozen outside training). Mean beta = "
         "beta_IQR + beta_RND (CVaR: alpha); beta_RND = tanh of the normalized RND error. The paper's Fig. "
         "5 order: more risk-averse on uneven ground than under pushes, and under pushes than on the plane "
-        "(the quadruped: Table 8's platform under a centroid force, legged_gym's rough terrain).",
+        "(the quadruped: Table 8's platform under a centroid force, legged_gym's rough terrain). Before a "
+        "fall: the states of each robot's last second before it fell, against the other states of the "
+        "cases where robots fell; HuRi's premise is that the critic turns averse there.",
         "",
     ]
     family = [entry for entry in entries if risk_family(entry.method)]
