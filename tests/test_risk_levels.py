@@ -145,6 +145,9 @@ def test_a_second_call_measures_only_the_new_cases_and_refuses_other_settings(ru
         return real(*args, **kwargs)
 
     monkeypatch.setattr(analysis, "evaluate", counted)
+    # The same checkpoint read from another file (kept in checkpoints/ once the run trained on) adds to it.
+    path = risk_levels_path(run, STEPS)
+    path.write_text(json.dumps({**first, "model": f"checkpoints/rl_model_{STEPS}_steps.zip"}))
     again = _measure(run, ["nominal@1", "uneven"])
     assert calls == ["uneven"]
     assert again["cases"]["nominal@1"] == first["cases"]["nominal@1"]  # read back as it was written

@@ -322,8 +322,10 @@ def _record(
     }
 
 
-RESUMED_KEYS = ("env_id", "steps", "model", "band", "settings")
-"""What a file's measurements must share with a new call's for the call to add to them."""
+RESUMED_KEYS = ("env_id", "steps", "band", "settings")
+"""What a file's measurements must share with a new call's for the call to add to them: the checkpoint (its
+steps and band, whichever file holds it: the run's newest model, then a kept checkpoint once the run trained
+on) and the settings."""
 
 
 def _resumed(path: Path, record: dict[str, Any]) -> dict[str, Any]:
