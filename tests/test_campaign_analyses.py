@@ -17,7 +17,7 @@ from sb3_huri.experiments.analyses.force_magnitude import HEADLINE, Reading, res
 from sb3_huri.experiments.analyses.risk_levels import risk_levels_path
 from sb3_huri.experiments.campaign import analyses
 from sb3_huri.experiments.campaign.queue import ANALYSES, load_queue
-from sb3_huri.experiments.campaign.scheduler import run_entry
+from sb3_huri.experiments.campaign.scheduler import run_entry, runnable
 from sb3_huri.experiments.errors import ExperimentError
 
 SMALL_PLAN = (
@@ -103,3 +103,23 @@ def test_a_queue_without_analyses_is_done_at_its_evaluation(tmp_path):
 def test_the_queues_analyses_name_known_ones(tmp_path, value):
     with pytest.raises(ExperimentError, match="analyses:` is a list of risk_levels, force_magnitude"):
         load_queue(_queue(tmp_path, analyses=value))
+
+
+def test_an_entry_whose_analyses_failed_does_not_hold_its_run_folder_back(tmp_path):
+    """Trained and evaluated, its analyses failing: the next entry of its run folder may train on (a failed
+    training or evaluation holds it back: tests/test_campaign.py)."""
+    tiny_robust_preset(tmp_path)
+    entry = dict(protocol="robust", method="huri", seed=0, run="a/Zerith1-v0_1", conf="tiny.yml")
+    queue = tmp_path / "campaign.yml"
+    entries = [{**entry, "name": "a-first", "steps": 100}, {**entry, "name": "a-later", "steps": 200}]
+    queue.write_text(yaml.safe_dump({"entries": entries}))
+    run = tmp_path / "a" / "Zerith1-v0_1"
+    (run / "Zerith1-v0").mkdir(parents=True)
+    (run / "Zerith1-v0" / "state.json").write_text('{"timesteps": 100, "wall_s": 0, "sessions": []}')
+    (run / "Zerith1-v0.zip").write_bytes(b"the model at 100 steps")
+    (run / "evaluations").mkdir()
+    (run / "evaluations" / "100.json").write_text('{"entry": "a-first"}')
+    first, later = load_queue(queue)
+    assert first.state() == "measure" and analyses.pending(first) == ["risk_levels", "force_magnitude"]
+    assert [e.name for e in runnable([first, later], busy=set(), failed=set())] == ["a-first"]
+    assert [e.name for e in runnable([first, later], busy=set(), failed={"a-first"})] == ["a-later"]

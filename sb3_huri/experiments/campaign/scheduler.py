@@ -84,12 +84,14 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
 
 def runnable(entries: list[CampaignEntry], busy: set[Path], failed: set[str]) -> list[CampaignEntry]:
     """The entries that may start now, in queue order: unfinished, not failed in this campaign, their run
-    folder not in `busy`, and no earlier entry of the same folder unfinished."""
+    folder not in `busy`, and no earlier entry of the same folder unfinished. An entry whose analyses failed
+    (trained and evaluated: state ``measure``) does not hold its folder's later entries back."""
     waiting: set[Path] = set(busy)
     ready = []
     for entry in entries:
         if entry.name in failed:
-            waiting.add(entry.run)
+            if entry.state() != "measure":
+                waiting.add(entry.run)
             continue
         if entry.state() == "done":
             continue
