@@ -88,6 +88,24 @@ def test_an_entry_is_measured_after_its_evaluation_and_a_cut_measurement_goes_on
     assert "1" in again["test:per-body:hold5"]["continuous-hands"]
     assert risk_levels_path(huri.run, 64).is_file()
 
+    # An analysis that fails leaves the others to run, then says why.
+    def broken(*args, **kwargs):
+        raise ExperimentError("the critic cannot be read")
+
+    risk_levels_path(huri.run, 64).unlink()
+    del again["test:pair:hold5"]["continuous-hands"]["1"]
+    result_path(huri.run, 64).write_text(json.dumps({**force, "measurements": again}))
+    monkeypatch.setattr(risk_levels, "measure_risk_levels", broken)
+    with pytest.raises(ExperimentError, match="huri-s0: risk_levels: the critic cannot be read"):
+        analyses.measure(huri)
+    assert (
+        "1"
+        in json.loads(result_path(huri.run, 64).read_text())["measurements"]["test:pair:hold5"][
+            "continuous-hands"
+        ]
+    )
+    assert analyses.pending(huri) == ["risk_levels"]
+
     # PPO has no quantile critic: its force magnitude only.
     assert run_entry(ppo, workers=0) == "done"
     assert result_path(ppo.run, 64).is_file() and not risk_levels_path(ppo.run, 64).exists()

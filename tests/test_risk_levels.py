@@ -187,6 +187,7 @@ def test_the_checkpoint_is_the_final_evaluations_if_kept_else_the_newest(tmp_pat
 
 
 def test_a_model_replaced_while_it_is_read_is_refused(run: Path, tmp_path: Path) -> None:
+    import os
     import shutil
 
     copy = tmp_path / "run"
@@ -195,6 +196,23 @@ def test_a_model_replaced_while_it_is_read_is_refused(run: Path, tmp_path: Path)
     with pytest.raises(ExperimentError, match="saved a new checkpoint while it was read"):
         measure_risk_levels(copy, cases=["nominal@1"], robots=1, episode_steps=2)
     assert not (copy / "evaluations").exists()
+
+    # A normalizer written milliseconds after the state (a git checkout) is the same checkpoint's; one
+    # written seconds after it is a later save's.
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    state, normalizer = copy / ENV / "state.json", copy / ENV / "vecnormalize.pkl"
+    state.write_text(json.dumps({"timesteps": STEPS}))
+    VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")])).save(str(normalizer))
+    model_file = copy / f"{ENV}.zip"
+    written = state.stat().st_mtime
+    os.utime(normalizer, (written + 0.005, written + 0.005))
+    model, _ = analysis.load_measured(copy, ENV, STEPS, model_file, normalizer)
+    assert model.num_timesteps == STEPS
+    with pytest.raises(ExperimentError, match="saved a new checkpoint"):
+        os.utime(normalizer, (written + 5, written + 5))
+        analysis.load_measured(copy, ENV, STEPS, model_file, normalizer)
 
 
 def test_case_statistics_counts_the_band_edges_as_within() -> None:
@@ -290,6 +308,11 @@ def test_the_fall_sentence_pools_the_cases_where_robots_fell() -> None:
         f"{before[1]:.0%} of the states above the band, against {other[0]:+.2f} and {other[1]:.0%} over "
         "the other states of those cases"
     )
+    # Every state of those cases within a second of a fall: nothing to hold them against.
+    for case in ("sudden-centroid", "uneven"):
+        values = data["cases"][case]
+        values.update(robot_steps=values["before_fall_states"], beta_elsewhere=None, above_elsewhere=None)
+    assert fall_sentence(data).endswith("of the states above the band; those cases hold no other states")
 
 
 def test_the_rnd_sentence_tells_inert_small_saturated_and_moving_apart() -> None:

@@ -206,6 +206,11 @@ def choose_checkpoint(run: Path, env_id: str, steps: int | None = None) -> tuple
     return newest, *found[newest], why
 
 
+CHECKOUT_SPREAD_S = 1.0
+"""A run's save writes its normalizer before ``state.json``; a git checkout writes them the other way round,
+milliseconds apart. A normalizer newer than the state by more than this is a later save's, a rollout on."""
+
+
 def load_measured(run: Path, env_id: str, steps: int, model_file: Path, normalizer_file: Path | None) -> Any:
     """Model and normalizer of the checkpoint at ``steps``. The run's newest model may be replaced while it is
     read (a run still training): ExperimentError unless the model holds ``steps`` steps and the run's
@@ -216,7 +221,10 @@ def load_measured(run: Path, env_id: str, steps: int, model_file: Path, normaliz
     if model_file == run / f"{env_id}.zip":
         state = run / env_id / "state.json"
         held = int(read_json(state, "the run's training state")["timesteps"])
-        stats_later = normalizer_file is not None and normalizer_file.stat().st_mtime > state.stat().st_mtime
+        stats_later = (
+            normalizer_file is not None
+            and normalizer_file.stat().st_mtime > state.stat().st_mtime + CHECKOUT_SPREAD_S
+        )
         if model.num_timesteps != steps or held != steps or stats_later:
             raise ExperimentError(f"{run} saved a new checkpoint while it was read; measure it again")
     return model, normalizer

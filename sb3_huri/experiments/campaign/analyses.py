@@ -18,9 +18,10 @@ from pathlib import Path
 
 from sb3_huri.experiments.analyses import force_magnitude, risk_levels
 from sb3_huri.experiments.campaign.queue import CampaignEntry
+from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.huri.methods import METHODS
 from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
-from sb3_huri.runner.files import read_json
+from sb3_huri.runner.files import RunError, read_json
 from sb3_huri.runner.folder import saved_models
 from zerith_gym import ZERITH1_ID, robot_of
 
@@ -33,10 +34,11 @@ nominal robot at the paper's magnitude, the headline reading first."""
 
 
 def applies(name: str, entry: CampaignEntry) -> bool:
-    """Whether the analysis ``name`` measures anything of the entry's agent."""
+    """Whether the analysis ``name`` measures anything of the entry's agent: the risk levels of a method that
+    reads the IQR band of a quantile critic, the force magnitude of a Zerith-1 agent."""
     if name == "risk_levels":
         preset = METHODS.get(entry.method)
-        return preset is not None and preset.distributional
+        return preset is not None and preset.distributional and preset.use_iqr
     return entry.env_id == ZERITH1_ID
 
 
@@ -56,20 +58,30 @@ def pending(entry: CampaignEntry) -> list[str]:
 
 def measure(entry: CampaignEntry, deadline: float | None = None) -> list[str]:
     """Measure the entry's pending analyses, starting nothing after ``deadline`` (``time.time()``); return
-    the analyses still pending afterwards."""
+    the analyses still pending afterwards. One that fails leaves the others to run, then ExperimentError
+    says why."""
     names = pending(entry)
     if not names:
         return []
     steps = int(entry.evaluation().stem)  # type: ignore[union-attr]
     limit = entry.defaults.episode_steps
+    failed = []
     for name in names:
-        if name == "risk_levels":
-            risk_levels.measure_risk_levels(entry.run, steps=steps, episode_steps=limit, deadline=deadline)
-            continue
-        for readings, cases, scales in FORCE_PLAN:
-            force_magnitude.measure_agent(
-                entry.run, steps, readings, cases=cases, scales=scales, episode_steps=limit, deadline=deadline
-            )
+        try:
+            if name == "risk_levels":
+                risk_levels.measure_risk_levels(
+                    entry.run, steps=steps, episode_steps=limit, deadline=deadline
+                )
+                continue
+            for readings, cases, scales in FORCE_PLAN:
+                force_magnitude.measure_agent(
+                    entry.run, steps, readings, cases=cases, scales=scales, episode_steps=limit,
+                    deadline=deadline,
+                )  # fmt: skip
+        except RunError as error:
+            failed.append(f"{name}: {error}")
+    if failed:
+        raise ExperimentError(f"entry {entry.name}: " + "; ".join(failed))
     return pending(entry)
 
 

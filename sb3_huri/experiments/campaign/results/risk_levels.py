@@ -162,11 +162,17 @@ def fall_sentence(data: dict[str, Any]) -> str:
             total = sum(w for w, _ in pairs)
             pooled[key, where] = sum(w * v for w, v in pairs) / total if total else math.nan
     falls = sum(values["falls"] for values in fell)
-    return (
+    name = "alpha" if data["band"]["distortion"] == "cvar" else "beta"
+    said = (
         f"in the last {FALL_WINDOW_STEPS * CONTROL_DT:g} s before its robots' {falls} falls ({len(fell)} "
-        f"cases), mean beta {pooled['beta', 'before_fall']:+.2f} and {pooled['above', 'before_fall']:.0%} of "
-        f"the states above the band, against {pooled['beta', 'elsewhere']:+.2f} and "
-        f"{pooled['above', 'elsewhere']:.0%} over the other states of those cases"
+        f"cases), mean {name} {pooled['beta', 'before_fall']:+.2f} and {pooled['above', 'before_fall']:.0%} "
+        "of the states above the band"
+    )
+    if math.isnan(pooled["beta", "elsewhere"]):
+        return f"{said}; those cases hold no other states"
+    return (
+        f"{said}, against {pooled['beta', 'elsewhere']:+.2f} and {pooled['above', 'elsewhere']:.0%} over the "
+        "other states of those cases"
     )
 
 
@@ -273,7 +279,8 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
     sentences, unmeasured, untrained, measured = [], [], [], []
     for entry in family:
         path = entry_file(entry, entries)
-        if path is None and entry.state() in ("done", "measure", "evaluate"):
+        state = entry.state() if path is None else None
+        if state in ("done", "evaluate"):
             unmeasured.append(f"- {entry.name} ({entry.method}): {_command(entry)}")
         elif path is None:
             untrained.append(entry.name)
@@ -289,7 +296,8 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
         lines += ["Not measured yet (each command measures the entry's checkpoint):", "", *unmeasured, ""]
     if untrained:
         lines += [
-            "Not trained to their steps yet (the campaign measures each after its final evaluation): "
+            "Not trained to their steps yet, or waiting for the campaign's analyses (it measures each after "
+            "its final evaluation): "
             f"{', '.join(untrained)}.",
             "",
         ]

@@ -122,7 +122,7 @@ def _entry_status(entry: CampaignEntry, evaluated: Evaluated | None) -> tuple[in
             evaluated.data.get("wall_s", math.nan) / 3600,
             list(evaluated.data.get("hardware", [])),
         )
-        words = "measuring its analyses" if state == "measure" else "done"
+        words = "analyses pending" if state == "measure" else "done"
         return run.timesteps, hours, hardware, f"{words} (evaluated at {evaluated.steps:,})"
     cases = _evaluating(entry)
     if state == "evaluate" and cases is not None:
