@@ -163,10 +163,11 @@ def fall_sentence(data: dict[str, Any]) -> str:
             pooled[key, where] = sum(w * v for w, v in pairs) / total if total else math.nan
     falls = sum(values["falls"] for values in fell)
     name = "alpha" if data["band"]["distortion"] == "cvar" else "beta"
+    counted = f"{falls} fall{'s' if falls != 1 else ''} ({len(fell)} case{'s' if len(fell) != 1 else ''})"
     said = (
-        f"in the last {FALL_WINDOW_STEPS * CONTROL_DT:g} s before its robots' {falls} falls ({len(fell)} "
-        f"cases), mean {name} {pooled['beta', 'before_fall']:+.2f} and {pooled['above', 'before_fall']:.0%} "
-        "of the states above the band"
+        f"in the last {FALL_WINDOW_STEPS * CONTROL_DT:g} s before its robots' {counted}, mean {name} "
+        f"{pooled['beta', 'before_fall']:+.2f} and {pooled['above', 'before_fall']:.0%} of the states above "
+        "the band"
     )
     if math.isnan(pooled["beta", "elsewhere"]):
         return f"{said}; those cases hold no other states"
