@@ -154,8 +154,8 @@ def case_statistics(states: RiskStates, thresholds: Sequence[float]) -> dict[str
 def fall_statistics(states: RiskStates, fall_step: np.ndarray, thresholds: Sequence[float]) -> dict[str, Any]:
     """The risk levels of the states within ``FALL_WINDOW_STEPS`` before a robot's fall (``fall_step``: each
     robot's, NaN where none) against the case's other states: the module docstring's ``FALL_KEYS``."""
-    iqr = np.asarray(states.iqr)
-    to_fall = np.asarray(fall_step, dtype=float)[states.robot] - states.step
+    iqr, fall_step = np.asarray(states.iqr), np.asarray(fall_step, dtype=float)
+    to_fall = fall_step[states.robot] - states.step
     before = to_fall < FALL_WINDOW_STEPS  # NaN (no fall) compares False
     above = iqr > np.asarray(thresholds, dtype=iqr.dtype)[1]
     risk = np.asarray(states.risk, dtype=np.float64)
@@ -164,7 +164,7 @@ def fall_statistics(states: RiskStates, fall_step: np.ndarray, thresholds: Seque
         return float(values[where].mean()) if where.any() else None
 
     return {
-        "falls": int(np.count_nonzero(~np.isnan(np.asarray(fall_step, dtype=float)))),
+        "falls": int(np.count_nonzero(~np.isnan(fall_step))),
         "before_fall_states": int(before.sum()),
         "beta_before_fall": mean(risk, before),
         "above_before_fall": mean(above, before),
