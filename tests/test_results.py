@@ -227,6 +227,49 @@ def test_the_terrain_section_shows_every_agent_and_pairs_them_on_the_terrain_cas
     assert "No HuRi-PPO pair of the `terrain` protocol is evaluated yet." in section
 
 
+def test_methods_that_share_a_ppo_evaluation_stand_side_by_side_and_against_huri(tmp_path: Path) -> None:
+    """HuRi and the percentile band, both paired with one PPO evaluation: each minus PPO and the percentile
+    band minus HuRi in one table, that comparison in full, and a finding; a method of another seed not."""
+    (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
+    rng = np.random.default_rng(3)
+    runs = {"huri-s0": ("huri", 0), "pct-s0": ("huri-percentile", 0), "ppo-s0": ("huri-baseline", 0),
+            "pct-s1": ("huri-percentile", 1)}  # fmt: skip
+    outcomes, entries = {}, []
+    for index, (name, (method, seed)) in enumerate(runs.items()):
+        folder = tmp_path / method / f"{ENV}_{index}"
+        _run(folder, 1000, 100.0, "machine A")
+        outcomes[name] = _evaluation(folder, name, method, seed, 1000 + index, rng)
+        entries.append({"name": name, "protocol": "robust", "method": method, "seed": seed, "steps": 1000,
+                        "run": f"{method}/{ENV}_{index}", "conf": "preset.yml"})  # fmt: skip
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
+    page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
+    section = page[page.index("### Methods side by side") : page.index("## 3.")]
+    assert "pct-s1" not in section  # seed 1 shares no PPO evaluation with HuRi
+    after = "**Methods side by side, robust protocol, seed 0**"
+    header = _row(section, "case", after)
+    assert header[1:] == ["HuRi minus PPO", "huri-percentile minus PPO", "huri-percentile minus HuRi"]
+    comparisons = [("huri-s0", "ppo-s0"), ("pct-s0", "ppo-s0"), ("pct-s0", "huri-s0")]
+    for case in (*TABLE1_SCENARIOS, "side-impact"):
+        expected = []
+        for first, second in comparisons:
+            difference, low, high = paired_difference_interval(outcomes[first][case], outcomes[second][case])
+            expected.append(f"{difference:+.3f} [{low:+.3f}, {high:+.3f}]")
+        assert _row(section, case, after)[1:] == expected
+    differences = np.mean(
+        [outcomes["pct-s0"][c].astype(float) - outcomes["huri-s0"][c] for c in TABLE1_SCENARIOS], 0
+    )
+    half = stats.t.ppf(0.975, ROBOTS - 1) * differences.std(ddof=1) / math.sqrt(ROBOTS)
+    mean_cell = (
+        f"{differences.mean():+.3f} [{differences.mean() - half:+.3f}, {differences.mean() + half:+.3f}]"
+    )
+    assert _row(section, "Table-1 mean (t over robots)", after)[3] == mean_cell
+    full = "**pct-s0 @ 0.0M minus huri-s0 @ 0.0M** (robust, seed 0)"
+    only = np.sum(outcomes["pct-s0"]["continuous-feet"] & ~outcomes["huri-s0"]["continuous-feet"])
+    assert _row(section, "continuous-feet", full)[4] == str(only)  # robots only the percentile band kept up
+    finding = "- huri-percentile minus HuRi, robust protocol, seed 0 (0.0M vs 0.0M steps), Table-1 mean on "
+    assert f"{finding}the same robots: {mean_cell}" in page
+
+
 def test_figures_are_drawn_small_and_linked(campaign) -> None:
     root, _ = campaign
     page = _page(root)
@@ -378,7 +421,8 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
     go2 = "Go2Like-v0"
     (tmp_path / "preset.yml").write_text("Go2Like-v0: {}\n")
     entries = []
-    for method in ("huri", "huri-baseline"):
+    names = {"huri": "huri", "huri-baseline": "ppo", "huri-percentile": "percentile"}
+    for method in names:
         run = tmp_path / "quadruped-rough" / method / f"{go2}_1"
         (run / go2).mkdir(parents=True)
         state = {"timesteps": 640, "wall_s": 64.0, "sessions": [{"from_timesteps": 0, "hardware": "m"}]}
@@ -391,12 +435,13 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
                 "terrain_level": step / 320,
             }
             append_row(run, {**dict.fromkeys(CURVE_COLUMNS, math.nan), **row})
-        name = f"quadruped-rough-{'huri' if method == 'huri' else 'ppo'}-s0"
+        name = f"quadruped-rough-{names[method]}-s0"
         entries.append(dict(name=name, protocol="quadruped", method=method, seed=0, conf="preset.yml",
                             run=f"quadruped-rough/{method}/{go2}_1", steps=640))  # fmt: skip
     survived = {
         "huri": {"platform-0.40": [1, 1, 0, 1] * 5, "platform-0.45": [1, 0, 0, 1] * 5, "nominal@1": [1] * 20},
         "huri-baseline": {"platform-0.40": [0, 1, 0, 0] * 5, "platform-0.45": [0, 1, 0, 1] * 5},
+        "huri-percentile": {"platform-0.40": [0, 1, 1, 1] * 5, "platform-0.45": [1, 1, 0, 1] * 5},
     }
     for entry in entries:
         cases = {
@@ -436,6 +481,18 @@ def test_the_quadruped_section_draws_return_and_terrain_level_and_table8(tmp_pat
     assert (
         "platform-0.40 +0.500 [" in finding and "HuRi survives more" in finding and "One seed (0)" in finding
     )
+    # The percentile band beside HuRi against the same PPO, and against HuRi directly: on 0.40 m they
+    # disagree on robots 0 (only HuRi) and 2 (only the band) of each four: +0.000.
+    side = page.split("**Methods side by side, quadruped protocol, seed 0**")[1]
+    assert _row(side, "case")[1:] == [
+        "HuRi minus PPO",
+        "huri-percentile minus PPO",
+        "huri-percentile minus HuRi",
+    ]
+    assert _row(side, "platform-0.40")[3].startswith("+0.000 [")
+    assert _row(side, "platform-0.45")[3].startswith("+0.250 [")  # robot 1 of each four: only the band
+    finding = next(line for line in page.splitlines() if line.startswith("- huri-percentile minus HuRi"))
+    assert "platform-0.45 +0.250 [" in finding and "quadruped protocol" in finding
 
 
 def _shape_run(folder: Path, steps: int, ret: float, fall: float, speed: float, rows: dict[int, float]):

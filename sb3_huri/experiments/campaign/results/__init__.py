@@ -9,6 +9,7 @@
 2. the Table-1 analog: survival per case with its 95% Wilson interval, the Table-1 mean, the paper's
    numbers; HuRi minus PPO on the same robots (Newcombe's paired interval per case, a t interval over the
    robots for the Table-1 mean); means over seeds with a t interval where several seeds were evaluated;
+   methods side by side where several share a PPO evaluation: each minus PPO, each minus HuRi;
 3. ``robustness.png``: every run's robustness learning curve (``robustness.csv``'s Table-1 mean);
 4. ``returns.png``: the training return against samples per method and protocol (Fig. 3 analog);
 5. ``tracking.png``: velocity-tracking errors under load, friction and both (Fig. 4 analog);
@@ -17,7 +18,8 @@
    below, within and above its IQR band, mean beta and beta_RND, and whether the paper's order holds
    (the campaign measures them after each final evaluation, ``benchmarks/risk_levels.py`` by hand);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
-   against HuRi and PPO at equal steps while they train, and its Table 8 analog;
+   against HuRi and PPO at equal steps while they train, and its Table 8 analog with its pairs (and its
+   methods side by side, as in section 2);
 8. ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
    and their final evaluations on the same robots where both were evaluated at comparable steps;
 9. the Table 9 analog: Zerith-1's survival on the multi-terrain test and down the platforms, beside the
@@ -40,7 +42,7 @@ from pathlib import Path
 
 from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.results.band import band_section
-from sb3_huri.experiments.campaign.results.evaluations import load_evaluations, pairs
+from sb3_huri.experiments.campaign.results.evaluations import SURVIVAL_CASES, load_evaluations, pairs
 from sb3_huri.experiments.campaign.results.figures import (
     returns_section,
     risk_section,
@@ -49,6 +51,7 @@ from sb3_huri.experiments.campaign.results.figures import (
 )
 from sb3_huri.experiments.campaign.results.force_magnitude import force_magnitude_section
 from sb3_huri.experiments.campaign.results.markdown import link
+from sb3_huri.experiments.campaign.results.methods import side_by_side_findings, side_by_side_section
 from sb3_huri.experiments.campaign.results.quadruped import quadruped_findings, quadruped_section
 from sb3_huri.experiments.campaign.results.risk_levels import risk_levels_section
 from sb3_huri.experiments.campaign.results.rollout_shape import rollout_shape_section
@@ -85,10 +88,15 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         f"{entries[0].defaults.eval_seed if entries else '-'} + i, the same robots for every agent), "
         "20-s episodes at 1 m/s, success = no fall.",
         "",
-        *findings_section(every_entry, evaluations, quadruped_findings(quadruped_evaluations)),
+        *findings_section(
+            every_entry,
+            evaluations,
+            [*side_by_side_findings(evaluations, SURVIVAL_CASES), *quadruped_findings(quadruped_evaluations)],
+        ),
         *status_section(every_entry, [*evaluations, *quadruped_evaluations], out),
         *table1_section(evaluations),
         *pairs_section(entries, evaluations),
+        *side_by_side_section(evaluations, SURVIVAL_CASES),
         *robustness_section(entries, evaluations, figures, out),
         *returns_section(entries, figures, out),
         *tracking_section(evaluations, figures, out),

@@ -27,6 +27,7 @@ from sb3_huri.experiments.campaign.results.markdown import (
     save_figure,
     verdict,
 )
+from sb3_huri.experiments.campaign.results.methods import side_by_side_findings, side_by_side_lines
 from sb3_huri.experiments.campaign.results.tables import case_difference, method_pair_lines, survival_cell
 from sb3_huri.runner.curve import read_curve
 
@@ -40,9 +41,11 @@ TABLE8_CASES = tuple(PAPER_TABLE8)
 
 def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
     """Lines of the page's findings: each quadruped pair of a method and PPO (same preset and seed, at
-    comparable steps) on Table 8's platforms, paired on the same robots; and whether one seed is all."""
+    comparable steps) on Table 8's platforms, paired on the same robots, and whether one seed is all; then
+    each method minus HuRi where both share a PPO evaluation."""
+    evaluations = [e for e in evaluations if e.entry.protocol == "quadruped"]
     lines = []
-    for first, second in pairs([e for e in evaluations if e.entry.protocol == "quadruped"]):
+    for first, second in pairs(evaluations):
         name = method_label(first.entry.method)
         parts = []
         for case in TABLE8_CASES:
@@ -59,7 +62,7 @@ def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
                 + "; ".join(parts)
                 + f". One seed ({first.entry.seed}): an anecdote, no interval over seeds yet."
             )
-    return lines
+    return [*lines, *side_by_side_findings(evaluations, TABLE8_CASES)]
 
 
 def quadruped_section(
@@ -141,4 +144,4 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
     lines += ["", f"The paper's Table 8 (Go2 in Isaac Gym, 5 seeds): {paper}.", ""]
     for first, second in pairs(shown):
         lines += method_pair_lines(first, second, QUADRUPED_CASES)
-    return lines
+    return [*lines, *side_by_side_lines(shown, QUADRUPED_CASES)]
