@@ -13,6 +13,7 @@ import yaml
 from huri_helpers import tiny_robust_preset
 
 from sb3_huri.experiments.analyses import risk_levels
+from sb3_huri.experiments.analyses.advantages import advantages_path
 from sb3_huri.experiments.analyses.force_magnitude import HEADLINE, Reading, result_path
 from sb3_huri.experiments.analyses.risk_levels import risk_levels_path
 from sb3_huri.experiments.campaign import analyses
@@ -56,6 +57,7 @@ def test_an_entry_is_measured_after_its_evaluation_and_a_cut_measurement_goes_on
     assert huri.defaults.analyses == ANALYSES
     assert analyses.applies("risk_levels", huri) and not analyses.applies("risk_levels", ppo)
     assert analyses.applies("force_magnitude", ppo) and analyses.pending(huri) == []  # not evaluated yet
+    assert analyses.applies("advantages", huri) and not analyses.applies("advantages", ppo)
 
     # Trained, evaluated, then measured at the evaluated checkpoint: done.
     assert run_entry(huri, workers=0) == "done" and analyses.pending(huri) == []
@@ -63,6 +65,7 @@ def test_an_entry_is_measured_after_its_evaluation_and_a_cut_measurement_goes_on
     assert risk["steps"] == 64 and len(risk["cases"]) >= 4
     assert set(risk["cases"]) == risk_levels.measured_cases(risk)  # the falls' statistics too
     assert risk["settings"]["episode_steps"] == EPISODE_STEPS
+    assert json.loads(advantages_path(huri.run, 64).read_text())["steps"] == 64
     force = json.loads(result_path(huri.run, 64).read_text())
     measured = {key: {case: sorted(scales) for case, scales in cases.items()}
                 for key, cases in force["measurements"].items()}  # fmt: skip
@@ -109,6 +112,7 @@ def test_an_entry_is_measured_after_its_evaluation_and_a_cut_measurement_goes_on
     # PPO has no quantile critic: its force magnitude only.
     assert run_entry(ppo, workers=0) == "done"
     assert result_path(ppo.run, 64).is_file() and not risk_levels_path(ppo.run, 64).exists()
+    assert not advantages_path(ppo.run, 64).exists()
 
 
 def test_a_queue_without_analyses_is_done_at_its_evaluation(tmp_path):
@@ -138,6 +142,6 @@ def test_an_entry_whose_analyses_failed_does_not_hold_its_run_folder_back(tmp_pa
     (run / "evaluations").mkdir()
     (run / "evaluations" / "100.json").write_text('{"entry": "a-first"}')
     first, later = load_queue(queue)
-    assert first.state() == "measure" and analyses.pending(first) == ["risk_levels", "force_magnitude"]
+    assert first.state() == "measure" and analyses.pending(first) == list(ANALYSES)
     assert [e.name for e in runnable([first, later], busy=set(), failed=set())] == ["a-first"]
     assert [e.name for e in runnable([first, later], busy=set(), failed={"a-first"})] == ["a-later"]

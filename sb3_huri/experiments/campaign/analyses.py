@@ -1,11 +1,13 @@
-"""What a campaign entry is measured on after its final evaluation, at the evaluated checkpoint, so that the
-results page's sections 6b and 10 fill in as entries finish (the queue's ``defaults.analyses`` names them):
+"""What a campaign entry is measured on after its final evaluation, at the evaluated checkpoint, so that
+the results page's sections 6b, 6c and 10 fill in as entries finish (``defaults.analyses`` names them):
 
 - ``risk_levels``: the risk levels its critic sets per scenario (``analyses.risk_levels``), for an entry
   whose method has a quantile critic;
 - ``force_magnitude``: its survival over the force's magnitude, 0.1x to 1.5x of the paper's, under both
   readings of the forces on hands and feet and both hold times of a push, and on the nominal robot at the
-  paper's magnitude (``analyses.force_magnitude``), for a Zerith-1 entry.
+  paper's magnitude (``analyses.force_magnitude``), for a Zerith-1 entry;
+- ``advantages``: how far its risk distortion moves the advantages of its own training rollouts from those
+  of a neutral and of a constant risk level (``analyses.advantages``), for a method with a quantile critic.
 
 Each file is written after every case, so a measurement stopped by the wall time or a signal goes on where
 it stopped. The campaign measures an entry while its run holds the evaluated checkpoint (the newest model or
@@ -14,9 +16,10 @@ a kept checkpoint); for a run trained on since, ``benchmarks/force_magnitude.py`
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
-from sb3_huri.experiments.analyses import force_magnitude, risk_levels
+from sb3_huri.experiments.analyses import advantages, force_magnitude, risk_levels
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.huri.methods import METHODS
@@ -35,10 +38,13 @@ nominal robot at the paper's magnitude, the headline reading first."""
 
 def applies(name: str, entry: CampaignEntry) -> bool:
     """Whether the analysis ``name`` measures anything of the entry's agent: the risk levels of a method that
-    reads the IQR band of a quantile critic, the force magnitude of a Zerith-1 agent."""
+    reads the IQR band of a quantile critic, the advantages of a method with a quantile critic, the force
+    magnitude of a Zerith-1 agent."""
+    preset = METHODS.get(entry.method)
     if name == "risk_levels":
-        preset = METHODS.get(entry.method)
         return preset is not None and preset.distributional and preset.use_iqr
+    if name == "advantages":
+        return preset is not None and preset.distributional
     return entry.env_id == ZERITH1_ID
 
 
@@ -73,6 +79,10 @@ def measure(entry: CampaignEntry, deadline: float | None = None) -> list[str]:
                     entry.run, steps=steps, episode_steps=limit, deadline=deadline
                 )
                 continue
+            if name == "advantages":
+                if deadline is None or time.time() < deadline:
+                    advantages.measure_advantages(entry.run, steps=steps)
+                continue
             for readings, cases, scales in FORCE_PLAN:
                 force_magnitude.measure_agent(
                     entry.run, steps, readings, cases=cases, scales=scales, episode_steps=limit,
@@ -87,6 +97,8 @@ def measure(entry: CampaignEntry, deadline: float | None = None) -> list[str]:
 
 def _complete(name: str, entry: CampaignEntry, steps: int) -> bool:
     """Whether the analysis's file of the checkpoint at ``steps`` holds every case it measures."""
+    if name == "advantages":
+        return advantages.advantages_path(entry.run, steps).is_file()
     if name == "risk_levels":
         path = risk_levels.risk_levels_path(entry.run, steps)
         if not path.is_file():

@@ -17,6 +17,8 @@
 6b. the risk levels each HuRi-family agent sets on the states it visits, per scenario: the shares of states
    below, within and above its IQR band, mean beta and beta_RND, and whether the paper's order holds
    (the campaign measures them after each final evaluation, ``benchmarks/risk_levels.py`` by hand);
+6c. how far each agent's risk distortion moves the advantages of its own training rollouts from those of a
+   neutral and of a constant risk level (measured likewise, ``benchmarks/advantages.py`` by hand);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
    against HuRi and PPO at equal steps while they train, and its Table 8 analog with its pairs (and its
    methods side by side, as in section 2);
@@ -41,6 +43,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sb3_huri.experiments.campaign.queue import load_queue
+from sb3_huri.experiments.campaign.results.advantages import advantages_section
 from sb3_huri.experiments.campaign.results.band import band_section
 from sb3_huri.experiments.campaign.results.evaluations import SURVIVAL_CASES, load_evaluations, pairs
 from sb3_huri.experiments.campaign.results.figures import (
@@ -102,6 +105,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *tracking_section(evaluations, figures, out),
         *risk_section(evaluations, figures, out),
         *risk_levels_section(every_entry),
+        *advantages_section(every_entry),
         *quadruped_section(quadruped, quadruped_evaluations, figures, out),
         *rollout_shape_section(entries, evaluations, figures, out),
         *terrain_section(evaluations),

@@ -142,7 +142,9 @@ def returns_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) 
         if not curve:
             continue
         entry = run_entries[0]
-        groups.setdefault((entry.protocol, entry.method), []).append(smoothed_curve(run))
+        steps, returns = smoothed_curve(run)
+        if steps.size:  # no episode ended yet: no return to draw
+            groups.setdefault((entry.protocol, entry.method), []).append((steps, returns))
         reference = paper.TRAINING_RETURN.get(entry.method)
         lines.append(
             f"| `{link(run, out)}` | {', '.join(e.name for e in run_entries)} | "
@@ -184,7 +186,7 @@ def _plot_returns(path: Path, groups: dict[tuple[str, str], list[tuple[np.ndarra
         for (own, method), curves in groups.items():
             if own != protocol:
                 continue
-            grid = np.linspace(0, max(steps[-1] for steps, _ in curves if steps.size), 400)
+            grid = np.linspace(0, max(steps[-1] for steps, _ in curves), 400)
             values = np.array([np.where(grid <= s[-1], np.interp(grid, s, r), np.nan) for s, r in curves])
             masked = np.ma.masked_invalid(values)  # a seed's curve ends where its run stopped
             color = METHOD_COLORS.get(method)

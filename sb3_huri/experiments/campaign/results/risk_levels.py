@@ -245,12 +245,13 @@ def _sentence_start(text: str) -> str:
     return text[:1].upper() + text[1:]
 
 
-def _command(entry: CampaignEntry) -> str:
-    """The command that measures the entry's checkpoint, its run folder relative to here if it lies below."""
+def measure_command(entry: CampaignEntry, script: str = SCRIPT) -> str:
+    """The command of ``script`` that measures the entry's checkpoint, its run folder relative to here if it
+    lies below."""
     run = entry.run
     here = Path.cwd()
     shown = os.path.relpath(run, here) if run.is_relative_to(here) else str(run)
-    return f"`python {SCRIPT} {shown} --steps {evaluated_steps(entry) or entry.steps}`"
+    return f"`python {script} {shown} --steps {evaluated_steps(entry) or entry.steps}`"
 
 
 def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
@@ -282,7 +283,7 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
         path = entry_file(entry, entries)
         state = entry.state() if path is None else None
         if state in ("done", "evaluate"):
-            unmeasured.append(f"- {entry.name} ({entry.method}): {_command(entry)}")
+            unmeasured.append(f"- {entry.name} ({entry.method}): {measure_command(entry)}")
         elif path is None:
             untrained.append(entry.name)
         if path is None:

@@ -1,0 +1,66 @@
+"""How far a HuRi agent's risk distortion moves the advantages its actor learns from.
+
+    python benchmarks/advantages.py runs/huri/Zerith1-v0_6              # its final evaluation's checkpoint
+    python benchmarks/advantages.py runs/huri/Zerith1-v0_6 runs/paper-protocol/huri/Zerith1-v0_1
+    python benchmarks/advantages.py runs/huri/Zerith1-v0_7 --steps 30000000 --rollouts 4
+
+An agent is a run folder of the campaign (RL Zoo's layout, with its `config.yml` and `state.json`). Without
+`--steps` the checkpoint is the one of the run's newest final evaluation if the run still holds it, else its
+newest model. The run's training env is rebuilt as a resumed run builds it (its preset, normalizer,
+curriculum stage and terrain levels), in this process; the algorithm's own loop collects `--warmup`
+rollouts, then `--rollouts` measured ones (robot i seeded `--seed` + i, stochastic actions as in training).
+Each measured rollout's advantages are held against those of the same rollout under one risk level for all
+states: the neutral one (Wang beta = 0, CVaR alpha = 1) and the rollout's mean. Printed: the risk level's
+mean and spread over the states, and against each: the correlation, the share of sign changes and the
+standard deviation of the difference of the standardized advantages (0: the same signal; 1.41: unrelated).
+
+Results go to `<run>/evaluations/<steps>-advantages.json`. The work is done by
+`sb3_huri.experiments.analyses.advantages`; the results page (section 6c) shows the files.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch as th
+
+from sb3_huri.experiments.analyses.advantages import (
+    DEFAULT_ROLLOUTS,
+    DEFAULT_SEED,
+    DEFAULT_WARMUP,
+    advantages_text,
+    measure_advantages,
+)
+from sb3_huri.runner.files import RunError
+
+
+def main() -> None:
+    """Parse and check the command line, measure every run folder, and print each one's means."""
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("runs", type=Path, nargs="+", help="run folders of the campaign")
+    parser.add_argument("--steps", type=int, default=None, help="the first model at or after these steps")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="robot i is seeded seed + i")
+    parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="rollouts collected, not measured")
+    parser.add_argument("--rollouts", type=int, default=DEFAULT_ROLLOUTS, help="rollouts measured")
+    args = parser.parse_args()
+    if args.warmup < 0 or args.rollouts < 1:
+        parser.error("--warmup must be at least 0 and --rollouts at least 1")
+    missing = [str(run) for run in args.runs if not run.is_dir()]
+    if missing:
+        parser.error(f"no such run folder: {', '.join(missing)}")
+    th.set_num_threads(1)
+    for run in args.runs:
+        try:
+            path = measure_advantages(
+                run, steps=args.steps, seed=args.seed, warmup=args.warmup, rollouts=args.rollouts
+            )
+        except RunError as error:
+            parser.exit(1, f"{error}\n")
+        print(f"\n{advantages_text(path)}\n", flush=True)
+
+
+if __name__ == "__main__":
+    main()

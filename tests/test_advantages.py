@@ -1,0 +1,180 @@
+"""How far an agent's risk distortion moves its advantages (``sb3_huri.experiments.analyses.advantages``,
+``benchmarks/advantages.py``) and its section of the results page.
+
+The advantages under a constant risk level are checked against a GAE written here from the rollout's own
+rewards, episode starts and atoms with Wang weights from scipy's normal distribution; the measurement runs
+on real run folders trained a few rollouts with the robust recipe shrunk to seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+import yaml
+from huri_helpers import ROOT, tiny_robust_preset
+from scipy import stats
+
+from sb3_huri.experiments.analyses.advantages import (
+    advantages_path,
+    constant_risk_advantages,
+    measure_advantages,
+    signal_change,
+    summary,
+)
+from sb3_huri.experiments.campaign.results import write_results
+from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.training import RunRequest, TrainingOptions, train_run
+from sb3_huri.zoo import read_preset
+
+STEPS = 128
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Run folders of the tiny robust preset trained 128 steps: HuRi with the percentile band, CVaR 0.5 (one
+    fixed risk level) and PPO."""
+    folder = tmp_path_factory.mktemp("advantages")
+    preset = read_preset("Zerith1-v0", tiny_robust_preset(folder))
+    options = TrainingOptions(checkpoint_freq=10_000, workers=0, verbose=0)
+    found = {}
+    for method in ("huri-percentile", "huri-cvar0.5", "huri-baseline"):
+        found[method] = folder / method / "Zerith1-v0_1"
+        assert train_run(RunRequest(found[method], preset, method, 0, until=STEPS), options) == STEPS
+    return found
+
+
+def _wang_weights(beta: float, n: int) -> np.ndarray:
+    levels = stats.norm.cdf(stats.norm.ppf(np.linspace(0.0, 1.0, n + 1)) + beta)
+    return np.diff(levels)
+
+
+def _gae(rewards, values, starts, last_values, last_dones, gamma, lam) -> np.ndarray:
+    """Generalized advantage estimation, step by step."""
+    advantages = np.zeros_like(rewards)
+    running = np.zeros(rewards.shape[1])
+    for t in reversed(range(len(rewards))):
+        if t == len(rewards) - 1:
+            following, alive = last_values, 1.0 - last_dones
+        else:
+            following, alive = values[t + 1], 1.0 - starts[t + 1]
+        delta = rewards[t] + gamma * following * alive - values[t]
+        running = delta + gamma * lam * alive * running
+        advantages[t] = running
+    return advantages
+
+
+def test_constant_risk_advantages_are_gae_on_that_levels_value(runs) -> None:
+    from stable_baselines3.common.callbacks import CallbackList
+    from stable_baselines3.common.logger import configure
+
+    import zerith_gym
+    from sb3_huri.runner.folder import load_checkpoint
+
+    model, _ = load_checkpoint(runs["huri-percentile"] / "Zerith1-v0.zip", None)
+    env = zerith_gym.make_vec_env(4, seed=5, workers=0, episode_steps=12)  # time-outs inside the rollout
+    model.set_env(env)
+    model.set_logger(configure(None, []))
+    model._last_obs, model._last_episode_starts = env.reset(), np.ones(4, dtype=bool)
+    callback = CallbackList([])
+    callback.init_callback(model)
+    model.collect_rollouts(env, callback, model.rollout_buffer, model.n_steps)
+    buffer = model.rollout_buffer
+    assert buffer.has_time_outs
+    own_weights = buffer.distortion_weights.copy()
+    with th.no_grad():
+        last = th.sort(model.policy.predict_values(model.policy.obs_to_tensor(model._last_obs)[0]), -1).values
+    last_atoms, dones = last.numpy(), model._last_episode_starts.astype(np.float32)
+
+    advantages = constant_risk_advantages(model, last_atoms, dones, 0.7)
+
+    weights = _wang_weights(0.7, buffer.atoms.shape[-1])
+    rewards = buffer.rewards + buffer.gamma * (buffer.bootstrap_atoms @ weights)  # time-outs bootstrapped
+    expected = _gae(
+        rewards, buffer.atoms @ weights, buffer.episode_starts, last_atoms @ weights, dones, buffer.gamma,
+        buffer.gae_lambda,
+    )  # fmt: skip
+    np.testing.assert_allclose(advantages, expected, rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(buffer.distortion_weights, own_weights)  # the agent's own levels restored
+    env.close()
+
+
+def test_signal_change_of_the_same_the_opposite_and_a_noisy_signal() -> None:
+    signal = np.random.default_rng(0).normal(size=1000)
+    assert signal_change(signal, 3.0 * signal) == pytest.approx(
+        {"correlation": 1.0, "sign_changes": 0.0, "standardized_gap": 0.0}, abs=1e-9
+    )
+    opposite = signal_change(signal, -signal)
+    assert opposite["correlation"] == pytest.approx(-1.0) and opposite["sign_changes"] == 1.0
+    assert opposite["standardized_gap"] == pytest.approx(2.0)
+    noisy = signal + np.random.default_rng(1).normal(size=1000)
+    change = signal_change(signal, noisy)
+    assert change["correlation"] == pytest.approx(stats.pearsonr(signal, noisy)[0])
+    assert change["standardized_gap"] == pytest.approx(np.sqrt(2.0 * (1.0 - change["correlation"])))
+    assert change["sign_changes"] == np.mean((signal > 0) != (noisy > 0))
+    with pytest.raises(ExperimentError, match="all equal"):
+        signal_change(signal, np.ones(1000))
+
+
+def test_a_run_is_measured_on_its_own_training_rollouts(runs) -> None:
+    path = measure_advantages(runs["huri-percentile"], warmup=1, rollouts=2)
+    assert path == advantages_path(runs["huri-percentile"], STEPS)
+    record = json.loads(path.read_text())
+    assert record["method"] == "huri-percentile" and record["steps"] == STEPS
+    assert record["settings"] == {"seed": 2000, "warmup": 1, "rollouts": 2, "robots": 4, "rollout_steps": 16}
+    assert record["curriculum_stage"] is not None and len(record["rollouts"]) == 2
+    first = record["rollouts"][0]
+    assert first["neutral"]["level"] == 0.0 and first["risk_sd"] > 0.0  # the band sets levels per state
+    assert first["constant"]["level"] == pytest.approx(first["risk_mean"])
+    assert summary(record)["risk_mean"] == pytest.approx(
+        np.mean([r["risk_mean"] for r in record["rollouts"]])
+    )
+
+    # CVaR 0.5 is one fixed level for every state: its own advantages are the constant level's.
+    fixed = json.loads(measure_advantages(runs["huri-cvar0.5"], warmup=0, rollouts=1).read_text())
+    (rollout,) = fixed["rollouts"]
+    assert rollout["risk_sd"] == 0.0 and rollout["constant"]["level"] == pytest.approx(0.5)
+    assert (
+        rollout["constant"]["correlation"] == pytest.approx(1.0) and rollout["constant"]["sign_changes"] == 0
+    )
+    assert rollout["neutral"]["level"] == 1.0 and rollout["neutral"]["correlation"] < 1.0
+
+    with pytest.raises(ExperimentError, match="no quantile critic"):
+        measure_advantages(runs["huri-baseline"])
+
+
+def test_the_results_page_shows_each_measured_agent_and_the_command_for_the_others(runs, tmp_path) -> None:
+    measure_advantages(runs["huri-percentile"], warmup=0, rollouts=1)
+    advantages_path(runs["huri-cvar0.5"], STEPS).unlink(missing_ok=True)
+    root = runs["huri-percentile"].parent.parent
+    entries = []
+    for method, run in runs.items():
+        name = f"{method}-s0"
+        entries.append({"name": name, "protocol": "robust", "method": method, "seed": 0, "steps": STEPS,
+                        "run": str(run.relative_to(root)), "conf": "tiny.yml"})  # fmt: skip
+        (run / "evaluations").mkdir(exist_ok=True)
+        evaluation = {"entry": name, "steps": STEPS, "settings": {"episodes": 1}, "cases": {}}
+        (run / "evaluations" / f"{STEPS}.json").write_text(json.dumps(evaluation))
+    (root / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
+    page = write_results(root / "campaign.yml", tmp_path / "results.md").read_text()
+    start = page.index("## 6c.")
+    section = page[start : page.index("\n## ", start)]
+    means = summary(json.loads(advantages_path(runs["huri-percentile"], STEPS).read_text()))
+    row = next(line for line in section.splitlines() if line.startswith("| huri-percentile-s0 @"))
+    assert f"| {means['risk_mean']:+.2f} ({means['risk_sd']:.2f}) |" in row
+    assert f"{means['neutral_correlation']:.3f} / {means['neutral_sign_changes']:.3f} / " in row
+    run = runs["huri-cvar0.5"]
+    assert f"`python benchmarks/advantages.py {run} --steps {STEPS}` (huri-cvar0.5-s0)" in section
+    assert "huri-baseline-s0" not in section  # PPO has no distortion
+
+
+def test_the_script_answers_help(monkeypatch, capsys) -> None:
+    monkeypatch.setattr(sys, "argv", ["advantages.py", "--help"])
+    with pytest.raises(SystemExit) as stop:
+        runpy.run_path(str(ROOT / "benchmarks" / "advantages.py"), run_name="__main__")
+    assert stop.value.code == 0 and capsys.readouterr().out.startswith("usage:")
