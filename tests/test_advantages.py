@@ -169,7 +169,7 @@ def test_the_results_page_shows_each_measured_agent_and_the_command_for_the_othe
     assert f"| {means['risk_mean']:+.2f} ({means['risk_sd']:.2f}) |" in row
     assert f"{means['neutral_correlation']:.3f} / {means['neutral_sign_changes']:.3f} / " in row
     run = runs["huri-cvar0.5"]
-    assert f"`python benchmarks/advantages.py {run} --steps {STEPS}` (huri-cvar0.5-s0)" in section
+    assert f"huri-cvar0.5-s0: `python benchmarks/advantages.py {run} --steps {STEPS}`" in section
     assert "huri-baseline-s0" not in section  # PPO has no distortion
 
 

@@ -1,7 +1,8 @@
 """Section 6c of the results page: how far each agent's risk distortion moves the advantages its actor
 learns from (``sb3_huri.experiments.analyses.advantages``), for every evaluated entry whose method has a
 quantile critic, with the file the campaign (or ``benchmarks/advantages.py``) wrote for its evaluated
-checkpoint. The entries without one are listed with the command that measures them."""
+checkpoint. The entries without one are listed with the command that measures them, or with the reason
+there is none: a run that trained on past the evaluated checkpoint no longer holds it."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from sb3_huri.experiments.campaign.results.markdown import millions
 from sb3_huri.experiments.campaign.results.risk_levels import evaluated_steps, measure_command
 from sb3_huri.huri.methods import METHODS
 from sb3_huri.runner.files import read_json
+from sb3_huri.runner.folder import saved_models
 
 SCRIPT = "benchmarks/advantages.py"
 
@@ -41,7 +43,9 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
             continue
         path = advantages_path(entry.run, steps)
         if not path.is_file():
-            missing.append(f"{measure_command(entry, SCRIPT)} ({entry.name})")
+            held = steps in saved_models(entry.run, entry.env_id)
+            how = measure_command(entry, SCRIPT) if held else "its run no longer holds that checkpoint"
+            missing.append(f"{entry.name}: {how}")
             continue
         means = summary(read_json(path, "an agent's advantage measures"))
         cells = [f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})"]
