@@ -20,11 +20,6 @@ Results go to `<run>/evaluations/<steps>-advantages.json`. The work is done by
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
-import torch as th
-
 from sb3_huri.experiments.analyses.advantages import (
     DEFAULT_ROLLOUTS,
     DEFAULT_SEED,
@@ -32,34 +27,19 @@ from sb3_huri.experiments.analyses.advantages import (
     advantages_text,
     measure_advantages,
 )
-from sb3_huri.runner.files import RunError
+from sb3_huri.experiments.analyses.command_line import measure_runs, runs_parser
 
 
 def main() -> None:
     """Parse and check the command line, measure every run folder, and print each one's means."""
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("runs", type=Path, nargs="+", help="run folders of the campaign")
-    parser.add_argument("--steps", type=int, default=None, help="the first model at or after these steps")
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="robot i is seeded seed + i")
+    parser = runs_parser(__doc__, DEFAULT_SEED)
     parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="rollouts collected, not measured")
     parser.add_argument("--rollouts", type=int, default=DEFAULT_ROLLOUTS, help="rollouts measured")
     args = parser.parse_args()
     if args.warmup < 0 or args.rollouts < 1:
         parser.error("--warmup must be at least 0 and --rollouts at least 1")
-    missing = [str(run) for run in args.runs if not run.is_dir()]
-    if missing:
-        parser.error(f"no such run folder: {', '.join(missing)}")
-    th.set_num_threads(1)
-    for run in args.runs:
-        try:
-            path = measure_advantages(
-                run, steps=args.steps, seed=args.seed, warmup=args.warmup, rollouts=args.rollouts
-            )
-        except RunError as error:
-            parser.exit(1, f"{error}\n")
-        print(f"\n{advantages_text(path)}\n", flush=True)
+    options = dict(steps=args.steps, seed=args.seed, warmup=args.warmup, rollouts=args.rollouts)
+    measure_runs(parser, args.runs, lambda run: measure_advantages(run, **options), advantages_text)
 
 
 if __name__ == "__main__":

@@ -25,31 +25,21 @@ the files.
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
-import torch as th
-
 from sb3_huri.experiments.analyses.agents import check_cases
+from sb3_huri.experiments.analyses.command_line import measure_runs, runs_parser
 from sb3_huri.experiments.analyses.risk_levels import (
     DEFAULT_ROBOTS,
     DEFAULT_SEED,
     measure_risk_levels,
     risk_levels_text,
 )
-from sb3_huri.runner.files import RunError
 
 
 def main() -> None:
     """Parse and check the command line, measure every run folder, and print each one's table."""
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("runs", type=Path, nargs="+", help="run folders of the campaign")
-    parser.add_argument("--steps", type=int, default=None, help="the first model at or after these steps")
+    parser = runs_parser(__doc__, DEFAULT_SEED)
     parser.add_argument("--cases", nargs="+", default=None, help="scenario or scenario@vx")
     parser.add_argument("--robots", type=int, default=DEFAULT_ROBOTS, help="robots per case")
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="robot i is seeded seed + i")
     parser.add_argument("--episode-steps", type=int, default=None, help="time limit (default 1000: 20 s)")
     args = parser.parse_args()
     if args.robots < 1:
@@ -58,23 +48,10 @@ def main() -> None:
         check_cases(args.cases or [])
     except ValueError as error:
         parser.error(str(error))
-    missing = [str(run) for run in args.runs if not run.is_dir()]
-    if missing:
-        parser.error(f"no such run folder: {', '.join(missing)}")
-    th.set_num_threads(1)
-    for run in args.runs:
-        try:
-            path = measure_risk_levels(
-                run,
-                steps=args.steps,
-                cases=args.cases,
-                robots=args.robots,
-                seed=args.seed,
-                episode_steps=args.episode_steps,
-            )
-        except RunError as error:
-            parser.exit(1, f"{error}\n")
-        print(f"\n{risk_levels_text(path)}\n", flush=True)
+    options = dict(cases=args.cases, robots=args.robots, seed=args.seed, episode_steps=args.episode_steps)
+    measure_runs(
+        parser, args.runs, lambda run: measure_risk_levels(run, steps=args.steps, **options), risk_levels_text
+    )
 
 
 if __name__ == "__main__":

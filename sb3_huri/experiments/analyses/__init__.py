@@ -13,5 +13,8 @@
 - ``risk_levels``: the risk levels a HuRi agent's critic sets on the states it visits, per scenario: shares
   of states below, within and above its IQR band, beta and its RND part (``risk_levels.py``);
 - ``force_magnitude``: survival over the force's magnitude in the Table-1 and Fig. 4 cases, under both
-  readings of the forces on hands and feet and both hold times of a push (``force_magnitude.py``).
+  readings of the forces on hands and feet and both hold times of a push (``force_magnitude.py``);
+- ``advantages``: how far a HuRi agent's risk distortion moves the advantages of its own training rollouts
+  from those of a neutral and of a constant risk level (``advantages.py``);
+- ``command_line``: the arguments and loop of the scripts that measure run folders.
 """
