@@ -6,19 +6,23 @@ is no risk-awareness at all, whatever its statistics; and a risk level that is t
 fixed distortion, not an adaptive one. ``measure_advantages`` measures both on the agent's own training
 rollouts:
 
-1. It rebuilds the run's training env as a resumed run would (its preset's env and callbacks, its
-   normalizer, the curriculum stage and terrain levels of its state) and collects rollouts with the
-   algorithm's own loop (``HuRiPPO.collect_rollouts``: stochastic actions, each state's risk level, GAE on
-   ``V_beta``), ``warmup`` rollouts first so that episodes are under way as in training, then ``rollouts``
-   measured ones, robot i seeded ``seed + i``.
+1. It rebuilds the run's training env (its preset's env in this process, the checkpoint's normalizer with
+   its statistics frozen, its curricula) and collects rollouts with the algorithm's own loop
+   (``HuRiPPO.collect_rollouts``: stochastic actions, each state's risk level, GAE on ``V_beta``; the RND
+   predictor fitted after each rollout and the percentile band moved, as in training), robot i seeded
+   ``seed + i``. The randomization curriculum's stage is held where the checkpoint left it: the run's saved
+   stage for its newest model, the schedule's for a kept checkpoint (whose terrain levels are not saved: a
+   run on tile terrains is measured at its newest model only, its robots moving between levels as in
+   training). All robots start at a
+   reset, so ``warmup`` rollouts of about one episode come first; then ``rollouts`` measured ones, about
+   one episode too, so that every phase of an episode is in them.
 2. For each measured rollout it computes the advantages again from the same atoms, rewards and episode ends
-   under a constant risk level (``constant_risk_advantages``): the neutral one (Wang ``beta = 0``, CVaR
-   ``alpha = 1``: the critic's mean, what a risk-free HuRi would use) and the rollout's mean risk level (the
-   same distortion with the per-state adaptation removed).
-3. Against each: the Pearson correlation of the agent's advantages with them, the share of samples whose
-   advantage changes sign, and the standard deviation of the difference of the two after each is
-   standardized over the rollout (the actor normalizes advantages per minibatch: 0 means the same learning
-   signal, 1.41 unrelated ones).
+   under one risk level for every state (``constant_risk_advantages``): the neutral one (Wang ``beta = 0``,
+   CVaR ``alpha = 1``: the critic's mean, what a risk-free HuRi would use) and the rollout's mean risk
+   level (the same distortion with the per-state adaptation removed).
+3. Against each: the Pearson correlation of the agent's advantages with them (dominated by the largest
+   advantages), the share of samples whose advantage changes sign (dominated by the many small ones) and
+   that share weighted by the size of the agent's advantage (how much of the signal turns around).
 
 The results go to ``<run>/evaluations/<steps>-advantages.json``; ``benchmarks/advantages.py`` is the command
 line, the campaign measures every evaluated agent with a quantile critic, and the results page shows them.
@@ -26,6 +30,7 @@ line, the campaign measures every evaluated agent with a quantile critic, and th
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -34,7 +39,7 @@ import numpy as np
 import torch as th
 
 from sb3_huri.common.distortion import distortion_weights
-from sb3_huri.experiments.analyses.risk_levels import choose_checkpoint, load_measured, run_env_id
+from sb3_huri.experiments.analyses.risk_levels import band_of, choose_checkpoint, load_measured, run_env_id
 from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.runner.files import read_json, write_json
 from sb3_huri.runner.record import EVALUATIONS
@@ -42,10 +47,10 @@ from sb3_huri.runner.record import EVALUATIONS
 ADVANTAGES_SUFFIX = "-advantages.json"
 """A checkpoint's advantage measures are in its run's ``evaluations/`` folder, ``<steps>-advantages.json``."""
 DEFAULT_SEED = 2000
-DEFAULT_WARMUP = 1
-DEFAULT_ROLLOUTS = 2
 COMPARATORS = ("neutral", "constant")
 """The constant risk levels the agent's advantages are held against: the neutral one, the rollout's mean."""
+MEASURES = ("correlation", "sign_changes", "weighted_sign_changes")
+"""What ``signal_change`` gives for each comparator."""
 
 
 def advantages_path(run: Path, steps: int) -> Path:
@@ -85,22 +90,21 @@ def constant_risk_advantages(
 
 
 def signal_change(own: np.ndarray, other: np.ndarray) -> dict[str, float]:
-    """How far advantages ``own`` are from ``other`` (same samples): correlation, share of sign changes, and
-    the standard deviation of the difference of the two standardized arrays (``sqrt(2 (1 - corr))``)."""
+    """How far advantages ``own`` are from ``other`` (same samples): their correlation, the share of samples
+    whose sign differs, and that share weighted by ``|own|``."""
     own, other = np.ravel(own).astype(np.float64), np.ravel(other).astype(np.float64)
     if own.std() == 0.0 or other.std() == 0.0:
         raise ExperimentError("a rollout's advantages are all equal: no learning signal to compare")
-    correlation = float(np.corrcoef(own, other)[0, 1])
-    gap = (own - own.mean()) / own.std() - (other - other.mean()) / other.std()
+    turned = np.sign(own) != np.sign(other)
     return {
-        "correlation": correlation,
-        "sign_changes": float(np.mean(np.sign(own) != np.sign(other))),
-        "standardized_gap": float(gap.std()),
+        "correlation": float(np.corrcoef(own, other)[0, 1]),
+        "sign_changes": float(turned.mean()),
+        "weighted_sign_changes": float(np.abs(own)[turned].sum() / np.abs(own).sum()),
     }
 
 
 def rollout_measures(model: Any, last_atoms: np.ndarray, dones: np.ndarray) -> dict[str, Any]:
-    """The measures of the rollout just collected (module docstring, item 2-3): its risk levels, and its
+    """The measures of the rollout just collected (module docstring, items 2-3): its risk levels, and its
     advantages against the neutral and the constant mean risk level."""
     buffer = model.rollout_buffer
     own, risk = buffer.advantages.copy(), buffer.risk.copy()
@@ -112,31 +116,43 @@ def rollout_measures(model: Any, last_atoms: np.ndarray, dones: np.ndarray) -> d
     return measures
 
 
-def _training_env(run: Path, env_id: str, normalizer_file: Path | None, seed: int) -> tuple[Any, Any]:
-    """The run's training env as a resumed run builds it (one process) and its preset's callbacks, at the
-    curriculum stage and on the terrain levels of its state (the callbacks not yet bound to a model)."""
+def _training_env(
+    run: Path, env_id: str, normalizer: Any, seed: int, newest: bool
+) -> tuple[Any, list[Any], int]:
+    """The run's training env in this process with the checkpoint's ``normalizer`` (its statistics frozen),
+    the preset's curriculum callbacks (the run's saved stage and terrain levels for its ``newest`` model;
+    the schedule's stage for a kept checkpoint), and the preset's episode length."""
     import yaml
     from rl_zoo3.utils import get_callback_list
-    from stable_baselines3.common.callbacks import CallbackList
+    from stable_baselines3.common.vec_env import VecNormalize
 
     from sb3_huri.runner.build import preset_env
     from sb3_huri.runner.state import RunState, start_on_levels
     from zerith_gym import robot_of
-    from zerith_gym.sb3.callbacks import RandomizationCurriculum
+    from zerith_gym.sb3.callbacks import RandomizationCurriculum, TerrainCurriculum
+    from zerith_gym.task import EPISODE_STEPS
 
     config = yaml.safe_load((run / env_id / "config.yml").read_text())
     preset = dict(config) if isinstance(config, list) else config  # RL Zoo writes a list of pairs
+    curricula = [
+        c for c in get_callback_list(preset) if isinstance(c, RandomizationCurriculum | TerrainCurriculum)
+    ]
     state = RunState.read(run, env_id)
-    env = preset_env(preset, seed=seed, normalizer=normalizer_file, workers=0, robot=robot_of(env_id))
-    if hasattr(env, "training"):
-        env.training = False  # the normalizer's statistics stay the checkpoint's
-    callbacks = get_callback_list(preset)
-    for callback in callbacks:
-        if isinstance(callback, RandomizationCurriculum) and state.curriculum_stage is not None:
+    if not newest and any(isinstance(c, TerrainCurriculum) for c in curricula):
+        raise ExperimentError(
+            f"{run}: a kept checkpoint's terrain levels are not saved; measure the run's newest model"
+        )
+    env = preset_env(preset, seed=seed, workers=0, robot=robot_of(env_id))
+    if normalizer is not None:
+        normalizer.set_venv(env.venv if isinstance(env, VecNormalize) else env)
+        normalizer.training, env = False, normalizer  # the checkpoint's statistics, as it left them
+    for callback in curricula:
+        if isinstance(callback, RandomizationCurriculum) and newest:
             callback.start_stage = state.curriculum_stage
-    if state.terrain_levels is not None:
+    if newest and state.terrain_levels is not None:
         start_on_levels(env, state.terrain_levels)
-    return env, CallbackList(callbacks)
+    episode_steps = int((preset.get("env_kwargs") or {}).get("episode_steps", EPISODE_STEPS))
+    return env, curricula, episode_steps
 
 
 def measure_advantages(
@@ -144,44 +160,42 @@ def measure_advantages(
     *,
     steps: int | None = None,
     seed: int = DEFAULT_SEED,
-    warmup: int = DEFAULT_WARMUP,
-    rollouts: int = DEFAULT_ROLLOUTS,
+    warmup: int | None = None,
+    rollouts: int | None = None,
 ) -> Path:
     """Measure the agent of ``run`` (module docstring) and write its file; return the file's path.
 
     ``steps``: the checkpoint (``risk_levels.choose_checkpoint``: by default its final evaluation's if the
-    run holds it, else its newest model). ExperimentError for a model without a quantile critic, or a run
-    that saved a new checkpoint while it was read.
+    run holds it, else its newest model). ``warmup``, ``rollouts``: rollouts collected first and measured
+    (default: each as many as one episode takes, at least two measured). ExperimentError for a model
+    without a quantile critic, a run that saved a new checkpoint while it was read, or a kept checkpoint of
+    a run on tile terrains.
     """
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.utils import obs_as_tensor
 
-    if warmup < 0 or rollouts < 1:
+    if (warmup is not None and warmup < 0) or (rollouts is not None and rollouts < 1):
         raise ValueError(f"warmup must be >= 0 and rollouts >= 1, got {warmup} and {rollouts}")
     run = Path(run)
     env_id = run_env_id(run)
     steps, model_file, normalizer_file, why = choose_checkpoint(run, env_id, steps)
-    model, _ = load_measured(run, env_id, steps, model_file, normalizer_file)
+    model, normalizer = load_measured(run, env_id, steps, model_file, normalizer_file)
     if not getattr(model, "risk_model", None) or not model.risk_model.distributional:
         raise ExperimentError(f"{run}: its model has no quantile critic, hence no risk distortion to measure")
-    began = time.time()
-    env, callback = _training_env(run, env_id, normalizer_file, seed)
+    began, band = time.time(), band_of(model)
+    newest = model_file == run / f"{env_id}.zip"
+    env, curricula, episode_steps = _training_env(run, env_id, normalizer, seed, newest)
+    per_episode = math.ceil(episode_steps / model.n_steps)
+    warmup = per_episode if warmup is None else warmup
+    rollouts = max(per_episode, 2) if rollouts is None else rollouts
     try:
         model.set_env(env)
         model.set_logger(configure(None, []))
+        callback = _hold_stage(model, curricula)
         model._last_obs, model._last_episode_starts = env.reset(), np.ones(env.num_envs, dtype=bool)
         th.manual_seed(seed)
-        callback.init_callback(model)
-        callback.on_training_start(locals(), globals())
-        measured = []
-        for index in range(warmup + rollouts):
-            model.collect_rollouts(env, callback, model.rollout_buffer, model.n_steps)
-            if index < warmup:
-                continue
-            with th.no_grad():
-                outputs = model.policy.predict_values(obs_as_tensor(model._last_obs, model.device))
-            last_atoms = th.sort(outputs, dim=-1).values.cpu().numpy()
-            measured.append(rollout_measures(model, last_atoms, model._last_episode_starts))
+        measured = [
+            _rollout(model, env, callback, measure=index >= warmup) for index in range(warmup + rollouts)
+        ]
     finally:
         env.close()
     record = {
@@ -189,7 +203,8 @@ def measure_advantages(
         "method": getattr(model, "method", None),
         "steps": steps,
         "model": str(model_file.relative_to(run)) if model_file.is_relative_to(run) else str(model_file),
-        "curriculum_stage": _stage(run, env_id),
+        "band": band,
+        "curriculum": _curriculum(curricula),
         "settings": {
             "seed": seed,
             "warmup": warmup,
@@ -198,7 +213,7 @@ def measure_advantages(
             "rollout_steps": model.n_steps,
         },
         "eval_s": time.time() - began,
-        "rollouts": measured,
+        "rollouts": [m for m in measured if m is not None],
     }
     path = advantages_path(run, steps)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -207,36 +222,89 @@ def measure_advantages(
     return path
 
 
-def _stage(run: Path, env_id: str) -> int | None:
-    from sb3_huri.runner.state import RunState
+def _hold_stage(model: Any, curricula: list[Any]) -> Any:
+    """Set the randomization curriculum's stage once (its callback then leaves the rollouts: the stage is the
+    checkpoint's throughout), and return the callback the rollouts run: the other curricula (the terrain's
+    levels move as in training) behind the algorithm's own (the RND predictor's fit first)."""
+    from zerith_gym.sb3.callbacks import RandomizationCurriculum
 
-    return RunState.read(run, env_id).curriculum_stage
+    others = [c for c in curricula if not isinstance(c, RandomizationCurriculum)]
+    for curriculum in curricula:
+        if isinstance(curriculum, RandomizationCurriculum):
+            curriculum.init_callback(model)
+            curriculum.on_training_start(locals(), globals())
+            curriculum.on_rollout_start()
+    callback = model._init_callback(others)
+    callback.on_training_start(locals(), globals())
+    return callback
+
+
+def _rollout(model: Any, env: Any, callback: Any, measure: bool) -> dict[str, Any] | None:
+    """Collect one rollout into the model's buffer; its measures if ``measure``."""
+    from stable_baselines3.common.utils import obs_as_tensor
+
+    if not model.collect_rollouts(env, callback, model.rollout_buffer, model.n_steps):
+        raise ExperimentError("a callback stopped the rollout; nothing to measure")
+    if not measure:
+        return None
+    with th.no_grad():
+        outputs = model.policy.predict_values(obs_as_tensor(model._last_obs, model.device))
+    last_atoms = th.sort(outputs, dim=-1).values.cpu().numpy()
+    return rollout_measures(model, last_atoms, model._last_episode_starts)
+
+
+def _curriculum(curricula: list[Any]) -> dict[str, Any] | None:
+    """The randomization curriculum's stage and scale the rollouts were collected at (None without one)."""
+    from zerith_gym.sb3.callbacks import RandomizationCurriculum
+
+    for callback in curricula:
+        if isinstance(callback, RandomizationCurriculum):
+            return {"stage": callback.stage, "stages": callback.stages, "scale": callback.scale}
+    return None
+
+
+def measured_record(path: Path) -> dict[str, Any] | None:
+    """The advantage measures at ``path`` if the file holds every measure of every comparator for each of
+    its rollouts (None for no file, or one written before a measure was added: to be measured again)."""
+    if not path.is_file():
+        return None
+    record = read_json(path, "an agent's advantage measures")
+    rollouts = record.get("rollouts") if isinstance(record, dict) else None
+    complete = bool(rollouts) and all(
+        key in rollout.get(name, {}) for rollout in rollouts for name in COMPARATORS for key in MEASURES
+    )
+    return record if complete and "curriculum" in record else None
 
 
 def summary(record: dict[str, Any]) -> dict[str, float]:
-    """The measured rollouts' means: risk level and its spread, and each comparator's three measures."""
+    """The measured rollouts' means (risk level and its spread over states, each comparator's measures) and
+    each measure's range over the rollouts (``<name>_range``)."""
     rollouts = record["rollouts"]
     means = {key: float(np.mean([r[key] for r in rollouts])) for key in ("risk_mean", "risk_sd")}
     for name in COMPARATORS:
-        for key in ("correlation", "sign_changes", "standardized_gap"):
-            means[f"{name}_{key}"] = float(np.mean([r[name][key] for r in rollouts]))
+        for key in MEASURES:
+            values = [r[name][key] for r in rollouts]
+            means[f"{name}_{key}"] = float(np.mean(values))
+            means[f"{name}_{key}_range"] = (float(np.min(values)), float(np.max(values)))
     return means
 
 
 def advantages_text(path: Path) -> str:
-    """An advantage-measures file as text: what was measured, then its means."""
+    """An advantage-measures file as text: what was measured, then its means and ranges over the rollouts."""
     record = read_json(path, "an agent's advantage measures")
     means = summary(record)
-    settings = record["settings"]
+    settings, curriculum = record["settings"], record.get("curriculum")
+    stage = "" if curriculum is None else f", curriculum scale {curriculum['scale']:g}"
     lines = [
-        f"{path}: {record['method']} at {record['steps']:,} steps, {settings['rollouts']} rollouts of "
+        f"{path}: {record['method']} at {record['steps']:,} steps{stage}, {settings['rollouts']} rollouts of "
         f"{settings['robots']} robots x {settings['rollout_steps']} steps after {settings['warmup']} "
         f"(seed {settings['seed']}), {record['eval_s']:.0f} s",
         f"risk level: mean {means['risk_mean']:+.3f}, sd over states {means['risk_sd']:.3f}",
     ]
     for name in COMPARATORS:
-        lines.append(
-            f"against the {name} level: correlation {means[f'{name}_correlation']:.3f}, sign changes "
-            f"{means[f'{name}_sign_changes']:.3f}, standardized gap {means[f'{name}_standardized_gap']:.3f}"
-        )
+        cells = []
+        for key in MEASURES:
+            low, high = means[f"{name}_{key}_range"]
+            cells.append(f"{key.replace('_', ' ')} {means[f'{name}_{key}']:.3f} [{low:.3f}, {high:.3f}]")
+        lines.append(f"against the {name} level: " + ", ".join(cells))
     return "\n".join(lines)

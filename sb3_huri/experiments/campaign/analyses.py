@@ -98,7 +98,7 @@ def measure(entry: CampaignEntry, deadline: float | None = None) -> list[str]:
 def _complete(name: str, entry: CampaignEntry, steps: int) -> bool:
     """Whether the analysis's file of the checkpoint at ``steps`` holds every case it measures."""
     if name == "advantages":
-        return advantages.advantages_path(entry.run, steps).is_file()
+        return advantages.measured_record(advantages.advantages_path(entry.run, steps)) is not None
     if name == "risk_levels":
         path = risk_levels.risk_levels_path(entry.run, steps)
         if not path.is_file():

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from sb3_huri.experiments.analyses.advantages import advantages_path, summary
+from sb3_huri.experiments.analyses.advantages import MEASURES, advantages_path, measured_record, summary
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.markdown import millions
 from sb3_huri.experiments.campaign.results.risk_levels import evaluated_steps, measure_command
 from sb3_huri.huri.methods import METHODS
-from sb3_huri.runner.files import read_json
 from sb3_huri.runner.folder import saved_models
 
 SCRIPT = "benchmarks/advantages.py"
@@ -27,12 +26,14 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         "",
         "PPO's actor follows the advantages; HuRi's differ from PPO's only through the distorted value "
         "`V_beta` its GAE bootstraps from. On the agent's own training rollouts (its preset's env at its "
-        "curriculum stage, stochastic actions, one warm-up rollout, then the means over two rollouts of "
-        "16,384 states), its advantages are held against those of the same rollouts under one risk level "
-        "for every state: the neutral level (Wang `beta = 0`, the critic's mean) and the rollout's mean "
-        "level (the same distortion, not adapted per state). Correlation 1, no sign changes and a gap of 0 "
-        "(the standard deviation of the difference of the two standardized advantages, as the actor "
-        "normalizes them) would mean the same learning signal; unrelated advantages give a gap of 1.41.",
+        "curriculum stage, stochastic actions, about one episode of warm-up, then the rollouts measured: "
+        "`states`), its advantages are held against those of the same rollouts under one risk level for "
+        "every state: the neutral level (Wang `beta = 0`, the critic's mean) and the rollout's mean level "
+        "(the same distortion, not adapted per state). Against each: the correlation (dominated by the "
+        "largest advantages), the share of advantages whose sign changes (dominated by the many small "
+        "ones) and that share weighted by the advantage's size; means over the rollouts measured "
+        f"(`{SCRIPT}` prints their ranges). The same learning signal would give 1 / 0 / 0. These describe "
+        "each agent at its own step and curriculum stage; they do not rank methods.",
         "",
     ]
     rows, missing = [], []
@@ -41,26 +42,26 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         steps = evaluated_steps(entry)
         if preset is None or not preset.distributional or steps is None:
             continue
-        path = advantages_path(entry.run, steps)
-        if not path.is_file():
+        record = measured_record(advantages_path(entry.run, steps))
+        if record is None:
             held = steps in saved_models(entry.run, entry.env_id)
             how = measure_command(entry, SCRIPT) if held else "its run no longer holds that checkpoint"
             missing.append(f"{entry.name}: {how}")
             continue
-        means = summary(read_json(path, "an agent's advantage measures"))
-        cells = [f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})"]
+        means, settings = summary(record), record["settings"]
+        states = settings["rollouts"] * settings["robots"] * settings["rollout_steps"]
+        curriculum = record.get("curriculum")
+        cells = [f"{states:,}", "-" if curriculum is None else f"{curriculum['scale']:g}"]
+        cells.append(f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})")
         for name in ("neutral", "constant"):
-            cells.append(
-                f"{means[f'{name}_correlation']:.3f} / {means[f'{name}_sign_changes']:.3f} / "
-                f"{means[f'{name}_standardized_gap']:.3f}"
-            )
+            cells.append(" / ".join(f"{means[f'{name}_{key}']:.3f}" for key in MEASURES))
         rows.append(f"| {entry.name} @ {millions(steps)} | {entry.method} | " + " | ".join(cells) + " |")
     if rows:
         lines += [
-            "| agent | method | risk level: mean (sd over states) | against the neutral level: "
-            "correlation / sign changes / gap | against the rollout's mean level: correlation / sign "
-            "changes / gap |",
-            "|---|---|---|---|---|",
+            "| agent | method | states | curriculum scale | risk level: mean (sd over states) | against the "
+            "neutral level: correlation / sign changes / weighted | against the rollout's mean level: "
+            "correlation / sign changes / weighted |",
+            "|---|---|---|---|---|---|---|",
             *rows,
             "",
         ]
