@@ -242,8 +242,20 @@ def test_methods_that_share_a_ppo_evaluation_stand_side_by_side_and_against_huri
         entries.append({"name": name, "protocol": "robust", "method": method, "seed": seed, "steps": 1000,
                         "run": f"{method}/{ENV}_{index}", "conf": "preset.yml"})  # fmt: skip
     (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
+    for index, name, shares in ((0, "huri-s0", (0.02, 0.04)), (1, "pct-s0", (0.10, 0.20))):
+        measures = [{"level": 0.0, "correlation": 0.9, "sign_changes": 0.2, "weighted_sign_changes": w}
+                    for w in shares]  # fmt: skip
+        rollouts = [{"risk_mean": 0.0, "risk_sd": 0.5, "neutral": m, "constant": m} for m in measures]
+        settings = {"rollouts": 2, "robots": 4, "rollout_steps": 8}
+        record = {"steps": 1000 + index, "curriculum": None, "settings": settings, "rollouts": rollouts}
+        folder = tmp_path / runs[name][0] / f"{ENV}_{index}" / "evaluations"
+        (folder / f"{1000 + index}-advantages.json").write_text(json.dumps(record))
     page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
     section = page[page.index("### Methods side by side") : page.index("## 3.")]
+    assert (
+        "the risk distortion turns around against the neutral level: HuRi 0.030, huri-percentile 0.150."
+        in section
+    )
     assert "pct-s1" not in section  # seed 1 shares no PPO evaluation with HuRi
     after = "**Methods side by side, robust protocol, seed 0**"
     header = _row(section, "case", after)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from sb3_huri.experiments.analyses.advantages import advantages_path, measured_record, summary
 from sb3_huri.experiments.campaign.results.evaluations import (
     BASELINE,
     Evaluated,
@@ -63,12 +64,30 @@ def side_by_side_lines(evaluations: Sequence[Evaluated], cases: Sequence[str]) -
         if all(math.isfinite(mean[0]) for mean in means):
             row = " | ".join(difference_cell(*mean) for mean in means)
             lines.append(f"| Table-1 mean (t over robots) | {row} |")
-        lines.append("")
+        lines += ["", *_signal_lines(methods)]
         for method in others:
             seed = f"({method.entry.protocol}, seed {method.entry.seed})"
             lines += [f"**{method.label} minus {reference.label}** {seed}", ""]
             lines += pair_table(method, reference, _name(method), _name(reference), cases)
     return lines
+
+
+def _signal_lines(methods: Sequence[Evaluated]) -> list[str]:
+    """How much of each method's learning signal its risk distortion turns around (section 6c's measure
+    against the neutral level, by size), where every one of ``methods`` was measured at its evaluated
+    checkpoint; nothing otherwise."""
+    records = [measured_record(advantages_path(m.entry.run, m.steps)) for m in methods]
+    if any(record is None for record in records):
+        return []
+    shares = [
+        f"{_name(m)} {summary(record)['neutral_weighted_sign_changes']:.3f}"
+        for m, record in zip(methods, records, strict=True)
+    ]
+    return [
+        "Their learning signal (section 6c): the share of it, by size, that the risk distortion turns "
+        "around against the neutral level: " + ", ".join(shares) + ".",
+        "",
+    ]
 
 
 def side_by_side_section(evaluations: Sequence[Evaluated], cases: Sequence[str]) -> list[str]:
