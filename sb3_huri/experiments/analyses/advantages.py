@@ -118,10 +118,11 @@ def rollout_measures(model: Any, last_atoms: np.ndarray, dones: np.ndarray) -> d
 
 def _training_env(
     run: Path, env_id: str, normalizer: Any, seed: int, newest: bool
-) -> tuple[Any, list[Any], int]:
+) -> tuple[Any, Any, list[Any], int]:
     """The run's training env in this process with the checkpoint's ``normalizer`` (its statistics frozen),
-    the preset's curriculum callbacks (the run's saved stage and terrain levels for its ``newest`` model;
-    the schedule's stage for a kept checkpoint), and the preset's episode length."""
+    the preset's randomization curriculum (None without one; the run's saved stage for its ``newest`` model,
+    the schedule's for a kept checkpoint) and its other curricula (the saved terrain levels), and the
+    preset's episode length."""
     import yaml
     from rl_zoo3.utils import get_callback_list
     from stable_baselines3.common.vec_env import VecNormalize
@@ -134,11 +135,10 @@ def _training_env(
 
     config = yaml.safe_load((run / env_id / "config.yml").read_text())
     preset = dict(config) if isinstance(config, list) else config  # RL Zoo writes a list of pairs
-    curricula = [
-        c for c in get_callback_list(preset) if isinstance(c, RandomizationCurriculum | TerrainCurriculum)
-    ]
-    state = RunState.read(run, env_id)
-    if not newest and any(isinstance(c, TerrainCurriculum) for c in curricula):
+    callbacks = get_callback_list(preset)
+    randomization = next((c for c in callbacks if isinstance(c, RandomizationCurriculum)), None)
+    terrain = [c for c in callbacks if isinstance(c, TerrainCurriculum)]
+    if terrain and not newest:
         raise ExperimentError(
             f"{run}: a kept checkpoint's terrain levels are not saved; measure the run's newest model"
         )
@@ -146,13 +146,13 @@ def _training_env(
     if normalizer is not None:
         normalizer.set_venv(env.venv if isinstance(env, VecNormalize) else env)
         normalizer.training, env = False, normalizer  # the checkpoint's statistics, as it left them
-    for callback in curricula:
-        if isinstance(callback, RandomizationCurriculum) and newest:
-            callback.start_stage = state.curriculum_stage
+    state = RunState.read(run, env_id)
+    if newest and randomization is not None:
+        randomization.start_stage = state.curriculum_stage
     if newest and state.terrain_levels is not None:
         start_on_levels(env, state.terrain_levels)
     episode_steps = int((preset.get("env_kwargs") or {}).get("episode_steps", EPISODE_STEPS))
-    return env, curricula, episode_steps
+    return env, randomization, terrain, episode_steps
 
 
 def measure_advantages(
@@ -183,14 +183,14 @@ def measure_advantages(
         raise ExperimentError(f"{run}: its model has no quantile critic, hence no risk distortion to measure")
     began, band = time.time(), band_of(model)
     newest = model_file == run / f"{env_id}.zip"
-    env, curricula, episode_steps = _training_env(run, env_id, normalizer, seed, newest)
+    env, randomization, terrain, episode_steps = _training_env(run, env_id, normalizer, seed, newest)
     per_episode = math.ceil(episode_steps / model.n_steps)
     warmup = per_episode if warmup is None else warmup
     rollouts = max(per_episode, 2) if rollouts is None else rollouts
     try:
         model.set_env(env)
         model.set_logger(configure(None, []))
-        callback = _hold_stage(model, curricula)
+        callback = _hold_stage(model, randomization, terrain)
         model._last_obs, model._last_episode_starts = env.reset(), np.ones(env.num_envs, dtype=bool)
         th.manual_seed(seed)
         measured = [
@@ -198,13 +198,20 @@ def measure_advantages(
         ]
     finally:
         env.close()
+    curriculum = None
+    if randomization is not None:  # the stage the rollouts were collected at
+        curriculum = {
+            "stage": randomization.stage,
+            "stages": randomization.stages,
+            "scale": randomization.scale,
+        }
     record = {
         "env_id": env_id,
         "method": getattr(model, "method", None),
         "steps": steps,
         "model": str(model_file.relative_to(run)) if model_file.is_relative_to(run) else str(model_file),
         "band": band,
-        "curriculum": _curriculum(curricula),
+        "curriculum": curriculum,
         "settings": {
             "seed": seed,
             "warmup": warmup,
@@ -222,18 +229,14 @@ def measure_advantages(
     return path
 
 
-def _hold_stage(model: Any, curricula: list[Any]) -> Any:
+def _hold_stage(model: Any, randomization: Any, others: list[Any]) -> Any:
     """Set the randomization curriculum's stage once (its callback then leaves the rollouts: the stage is the
-    checkpoint's throughout), and return the callback the rollouts run: the other curricula (the terrain's
+    checkpoint's throughout), and return the callback the rollouts run: the ``others`` (the terrain's
     levels move as in training) behind the algorithm's own (the RND predictor's fit first)."""
-    from zerith_gym.sb3.callbacks import RandomizationCurriculum
-
-    others = [c for c in curricula if not isinstance(c, RandomizationCurriculum)]
-    for curriculum in curricula:
-        if isinstance(curriculum, RandomizationCurriculum):
-            curriculum.init_callback(model)
-            curriculum.on_training_start(locals(), globals())
-            curriculum.on_rollout_start()
+    if randomization is not None:
+        randomization.init_callback(model)
+        randomization.on_training_start(locals(), globals())
+        randomization.on_rollout_start()
     callback = model._init_callback(others)
     callback.on_training_start(locals(), globals())
     return callback
@@ -253,16 +256,6 @@ def _rollout(model: Any, env: Any, callback: Any, measure: bool) -> dict[str, An
     return rollout_measures(model, last_atoms, model._last_episode_starts)
 
 
-def _curriculum(curricula: list[Any]) -> dict[str, Any] | None:
-    """The randomization curriculum's stage and scale the rollouts were collected at (None without one)."""
-    from zerith_gym.sb3.callbacks import RandomizationCurriculum
-
-    for callback in curricula:
-        if isinstance(callback, RandomizationCurriculum):
-            return {"stage": callback.stage, "stages": callback.stages, "scale": callback.scale}
-    return None
-
-
 def measured_record(path: Path) -> dict[str, Any] | None:
     """The advantage measures at ``path`` if the file holds every measure of every comparator for each of
     its rollouts (None for no file, or one written before a measure was added: to be measured again)."""
@@ -276,7 +269,7 @@ def measured_record(path: Path) -> dict[str, Any] | None:
     return record if complete and "curriculum" in record else None
 
 
-def summary(record: dict[str, Any]) -> dict[str, float]:
+def summary(record: dict[str, Any]) -> dict[str, Any]:
     """The measured rollouts' means (risk level and its spread over states, each comparator's measures) and
     each measure's range over the rollouts (``<name>_range``)."""
     rollouts = record["rollouts"]
