@@ -1,9 +1,9 @@
 """Train Zerith-1 to walk with HuRi (or another method) on the batched environment, on a CPU.
 
-    python examples/train_zerith.py                                   # HuRi (huri-percentile), the CPU preset
+    python examples/train_zerith.py                                   # HuRi (huri), the CPU preset
     python examples/train_zerith.py --algo huri-baseline --seed 1     # PPO baseline, same networks
-    python examples/train_zerith.py --resume logs/huri-percentile/Zerith1-v0_1   # continue where it stopped
-    python examples/train_zerith.py --resume logs/huri-percentile/Zerith1-v0_1 -params mirror_coef:4.0
+    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1   # continue where it stopped
+    python examples/train_zerith.py --resume logs/huri/Zerith1-v0_1 -params mirror_coef:4.0
     python examples/train_zerith.py -conf hyperparams/huri_robust.yml --max-wall-minutes 150
 
 It trains what `rl_zoo3 train --algo <algo> --env Zerith1-v0` trains: the `Zerith1-v0` preset of
@@ -17,8 +17,8 @@ checkpoints. The run is
 written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip` with
 `Zerith1-v0/config.yml`, `args.yml` and `vecnormalize.pkl`), so RL Zoo's tools read it:
 
-    rl_zoo3 enjoy --algo huri-percentile --env Zerith1-v0 -f logs/ --no-render -n 1000
-    python examples/watch_zerith.py logs/huri-percentile/Zerith1-v0_1
+    rl_zoo3 enjoy --algo huri --env Zerith1-v0 -f logs/ --no-render -n 1000
+    python examples/watch_zerith.py logs/huri/Zerith1-v0_1
 
 The trainer is `sb3_huri.runner.train_run`, the one the training campaign uses
 (`python -m sb3_huri.experiments campaign`). At the first rollout boundary past every `--checkpoint-freq`

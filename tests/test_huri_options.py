@@ -78,7 +78,7 @@ def test_learning_without_reward_normalization_warns_how_to_normalize():
     "setting", ["VecNormalize", "NormalizeReward", "huri-baseline", "huri-no-iqr", "huri-percentile"]
 )
 def test_no_warning_with_normalized_rewards_or_without_absolute_iqr_thresholds(setting):
-    """Normalized rewards, no IQR band, or the scale-free band (the default method): nothing to warn of."""
+    """Normalized rewards, no IQR band, or the scale-free band: nothing to warn of."""
     method = setting if setting.startswith("huri") else "huri"
     if setting == "VecNormalize":
         env = VecNormalize(dict_env(), norm_obs=False, norm_reward=True)

@@ -22,7 +22,7 @@ import optuna
 import yaml
 
 import sb3_huri
-from sb3_huri import HuRiPPO
+from sb3_huri import HuRiPPO, UnnormalizedRewardWarning
 from sb3_huri.zoo import METHODS, PRESETS_FILE, method_class
 from sb3_huri.zoo.sampler import convert_huri_params, sample_huri_params
 
@@ -245,24 +245,24 @@ def test_method_class_fixes_the_method(method: str) -> None:
     assert model.method == method
 
 
-def test_the_default_method_is_the_percentile_band_and_huri_keeps_the_printed_band() -> None:
-    """`HuRiPPO()` is HuRi with the scale-free band, the RL Zoo algorithm `huri-percentile` that takes any
-    `method`; `huri` (runs, agents, --algo) stays the band as printed, a class of its own."""
-    assert method_class("huri-percentile") is HuRiPPO
+def test_the_default_method_is_the_printed_band_and_the_percentile_band_is_its_own_class() -> None:
+    """`HuRiPPO()` is HuRi with the band as printed, the RL Zoo algorithm `huri` that takes any `method`;
+    `huri-percentile` (runs, agents, --algo) keeps the scale-free band, a class of its own."""
+    assert method_class("huri") is HuRiPPO
     default = HuRiPPO("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
-    assert default.method == "huri-percentile" and default.risk_model.iqr_band == "percentile"
-    literal = method_class("huri")("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
-    assert type(literal) is not HuRiPPO and literal.risk_model.iqr_band == "absolute"
+    assert default.method == "huri" and default.risk_model.iqr_band == "absolute"
+    adaptive = method_class("huri-percentile")("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
+    assert type(adaptive) is not HuRiPPO and adaptive.risk_model.iqr_band == "percentile"
     assert HuRiPPO(
-        "MlpPolicy", "Pendulum-v1", method="huri", n_steps=8, device="cpu"
-    ).risk_model.iqr_band == ("absolute")
+        "MlpPolicy", "Pendulum-v1", method="huri-percentile", n_steps=8, device="cpu"
+    ).risk_model.iqr_band == ("percentile")
 
 
 def test_method_class_rejects_a_conflicting_method_and_an_unknown_one() -> None:
     with pytest.raises(
-        ValueError, match=r"method='huri' conflicts with the algorithm huri-cvar0.5.*huri-percentile"
+        ValueError, match=r"method='huri-no-rnd' conflicts with the algorithm huri-cvar0.5.*--algo huri$"
     ):
-        method_class("huri-cvar0.5")("MlpPolicy", "Pendulum-v1", method="huri", device="cpu")
+        method_class("huri-cvar0.5")("MlpPolicy", "Pendulum-v1", method="huri-no-rnd", device="cpu")
     with pytest.raises(ValueError, match=r"unknown method 'cvar0.5': expected one of \['huri-baseline'"):
         method_class("cvar0.5")
 
@@ -292,7 +292,8 @@ def test_sampled_hyperparameters_build_a_model() -> None:
     assert convert_huri_params(trial.params) == hyperparams
     model = HuRiPPO("MlpPolicy", "Pendulum-v1", device="cpu", **hyperparams)
     assert model.batch_size == 16  # 32 steps split into 2 minibatches
-    model.learn(64)
+    with pytest.warns(UnnormalizedRewardWarning, match=r"\(0.2, 0.7\)"):  # the sampled band, unnormalized
+        model.learn(64)
 
 
 @pytest.mark.slow

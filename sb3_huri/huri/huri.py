@@ -79,7 +79,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         trust-region rate of the actor does not stop the critic learning; ``None`` (default) shares
         ``learning_rate``
     :param method: the method's preset, a name of ``sb3_huri.huri.METHODS`` (the RL Zoo algorithm names);
-        default ``huri-percentile``, HuRi with a scale-free IQR band (``huri``: the band as printed)
+        default ``huri``, HuRi with the IQR band as printed (``huri-percentile``: a scale-free band)
     :param n_quantiles: number of critic atoms ``N``; ``None`` takes ``policy_kwargs["n_quantiles"]`` if
         given, else 64 (ignored by ``huri-baseline``, whose critic is scalar)
     :param distortion: ``"wang"`` or ``"cvar"``; ``None`` takes the method's

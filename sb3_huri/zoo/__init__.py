@@ -141,7 +141,7 @@ def use_batched_zerith_env() -> None:
 @functools.cache
 def method_class(method: str) -> type:
     """``HuRiPPO`` with its ``method`` fixed: the class RL Zoo builds for the algorithm `method` (the default
-    method, ``huri-percentile``, is ``HuRiPPO`` itself); ValueError for a name not in ``METHODS``."""
+    method, ``huri``, is ``HuRiPPO`` itself); ValueError for a name not in ``METHODS``."""
     from sb3_huri import HuRiPPO
     from sb3_huri.huri.methods import DEFAULT_METHOD
 
