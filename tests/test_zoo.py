@@ -253,9 +253,8 @@ def test_the_default_method_is_the_printed_band_and_the_percentile_band_is_its_o
     assert default.method == "huri" and default.risk_model.iqr_band == "absolute"
     adaptive = method_class("huri-percentile")("MlpPolicy", "Pendulum-v1", n_steps=8, device="cpu")
     assert type(adaptive) is not HuRiPPO and adaptive.risk_model.iqr_band == "percentile"
-    assert HuRiPPO(
-        "MlpPolicy", "Pendulum-v1", method="huri-percentile", n_steps=8, device="cpu"
-    ).risk_model.iqr_band == ("percentile")
+    explicit = HuRiPPO("MlpPolicy", "Pendulum-v1", method="huri-percentile", n_steps=8, device="cpu")
+    assert explicit.risk_model.iqr_band == "percentile"
 
 
 def test_method_class_rejects_a_conflicting_method_and_an_unknown_one() -> None:
