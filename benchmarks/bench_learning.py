@@ -7,6 +7,7 @@ Each run is scored by a deterministic evaluation of the final policy (10 episode
 
     nice -n 10 python benchmarks/bench_learning.py                     # Pendulum-v1 and HalfCheetah-v5
     python benchmarks/bench_learning.py --envs Pendulum-v1 --methods huri huri-baseline huri-cvar0.5
+    python benchmarks/bench_learning.py --envs Pendulum-v1 --methods huri-percentile --td-level step
 """
 
 import argparse
@@ -20,7 +21,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecNormalize
 
-from sb3_huri import HuRiPPO
+from sb3_huri import METHODS, HuRiPPO
 
 # Settings shared by all methods, per environment, sized for a small CPU budget.
 SETTINGS = {
@@ -39,10 +40,12 @@ SETTINGS = {
 }
 
 
-def run(env_id: str, method: str, seed: int, timesteps: int | None) -> dict:
+def run(env_id: str, method: str, seed: int, timesteps: int | None, td_level: str | None = None) -> dict:
     settings = SETTINGS[env_id]
     env = VecNormalize(make_vec_env(env_id, n_envs=settings["n_envs"], seed=seed))
-    model = HuRiPPO("MlpPolicy", env, method=method, seed=seed, device="cpu", **settings["hyperparams"])
+    reads = td_level is not None and METHODS[method].distributional  # PPO's scalar critic has no levels
+    hyperparams = dict(settings["hyperparams"], **({"td_level": td_level} if reads else {}))
+    model = HuRiPPO("MlpPolicy", env, method=method, seed=seed, device="cpu", **hyperparams)
     start = time.perf_counter()
     model.learn(timesteps or settings["timesteps"])
     train_time = time.perf_counter() - start
@@ -53,8 +56,9 @@ def run(env_id: str, method: str, seed: int, timesteps: int | None) -> dict:
     eval_env.obs_rms = env.obs_rms
     mean_return, _ = evaluate_policy(model, eval_env, n_eval_episodes=10, deterministic=True)
     return dict(
-        env=env_id, method=method, seed=seed, final_return=float(mean_return), train_time_s=train_time
-    )
+        env=env_id, method=method, td_level=model.td_level, seed=seed, final_return=float(mean_return),
+        train_time_s=train_time,
+    )  # fmt: skip
 
 
 def main() -> None:
@@ -65,6 +69,10 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["huri-baseline", "huri"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--timesteps", type=int, default=None, help="override the per-env budget")
+    parser.add_argument(
+        "--td-level", choices=("state", "step"), default=None,
+        help="the TD reading of every method with a quantile critic (default: each method's, 'state')",
+    )  # fmt: skip
     parser.add_argument("--output", default=None, help="write the per-run results as JSON lines here")
     args = parser.parse_args()
     th.set_num_threads(1)
@@ -73,7 +81,7 @@ def main() -> None:
     for env_id in args.envs:
         for seed in args.seeds:
             for method in args.methods:
-                result = run(env_id, method, seed, args.timesteps)
+                result = run(env_id, method, seed, args.timesteps, args.td_level)
                 results.append(result)
                 print(json.dumps(result), flush=True)
                 if args.output:
@@ -90,8 +98,9 @@ def main() -> None:
             steps = args.timesteps or SETTINGS[env_id]["timesteps"]
             per_seed = ", ".join(f"{value:.0f}" for value in returns)
             minutes = np.mean([r["train_time_s"] for r in runs]) / 60
+            label = method if args.td_level is None else f"{method} (td_level {args.td_level})"
             print(
-                f"| {env_id} | {method} | {steps} | {np.mean(returns):.1f} ± {spread:.1f} | {per_seed} | "
+                f"| {env_id} | {label} | {steps} | {np.mean(returns):.1f} ± {spread:.1f} | {per_seed} | "
                 f"{minutes:.1f} min |"
             )
 

@@ -168,6 +168,9 @@ def test_a_run_is_measured_on_its_own_training_rollouts(runs) -> None:
     first = record["rollouts"][0]
     assert first["neutral"]["level"] == 0.0 and first["risk_sd"] > 0.0  # the band sets levels per state
     assert first["constant"]["level"] == pytest.approx(first["risk_mean"])
+    # Each TD error at its own step's level leaves out the jumps between levels: a signal of its own.
+    assert first["other_td_level"]["level"] == "step" and first["other_td_level"]["correlation"] < 1.0
+    assert set(first["other_td_level"]["neutral"]) == {"correlation", "sign_changes", "weighted_sign_changes"}
     means = summary(record)
     values = [r["neutral"]["sign_changes"] for r in record["rollouts"]]
     assert means["neutral_sign_changes"] == pytest.approx(np.mean(values))
@@ -186,6 +189,9 @@ def test_a_run_is_measured_on_its_own_training_rollouts(runs) -> None:
         rollout["constant"]["correlation"] == pytest.approx(1.0) and rollout["constant"]["sign_changes"] == 0
     )
     assert rollout["neutral"]["level"] == 1.0 and rollout["neutral"]["correlation"] < 1.0
+    # With one level for every state the two readings of a TD error's levels are the same.
+    assert rollout["other_td_level"]["correlation"] == pytest.approx(1.0)
+    assert rollout["other_td_level"]["weighted_sign_changes"] == pytest.approx(0.0, abs=1e-6)
 
     with pytest.raises(ExperimentError, match="no quantile critic"):
         measure_advantages(runs["huri-baseline"])
@@ -199,6 +205,18 @@ def test_a_file_without_a_measure_is_measured_again(runs, tmp_path) -> None:
     stale = tmp_path / "stale.json"
     stale.write_text(json.dumps(record))
     assert measured_record(stale) is None and measured_record(tmp_path / "none.json") is None
+    assert measured_record(stale, shown=True) is None
+    # A file written before the TD reading's comparator existed is measured again, but still shown.
+    record = json.loads(path.read_text())
+    for rollout in record["rollouts"]:
+        del rollout["other_td_level"]["neutral"]
+    stale.write_text(json.dumps(record))
+    assert measured_record(stale) is None  # the other reading against the neutral level came later still
+    for rollout in record["rollouts"]:
+        del rollout["other_td_level"]
+    stale.write_text(json.dumps(record))
+    assert measured_record(stale) is None and measured_record(stale, shown=True) == record
+    assert "other_td_level_correlation" not in summary(record) and "neutral_correlation" in summary(record)
 
 
 def test_the_results_page_shows_each_measured_agent_and_the_command_for_the_others(runs, tmp_path) -> None:
@@ -224,7 +242,9 @@ def test_the_results_page_shows_each_measured_agent_and_the_command_for_the_othe
     assert cells[2:5] == [f"{2 * 4 * 16:,}", f"{record['curriculum']['scale']:g}",
                           f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})"]  # fmt: skip
     keys = ("correlation", "sign_changes", "weighted_sign_changes")
-    assert cells[5] == " / ".join(f"{means[f'neutral_{key}']:.3f}" for key in keys)
+    for cell, name in zip(cells[5:], ("neutral", "constant", "other_td_level"), strict=True):
+        assert cell.startswith(" / ".join(f"{means[f'{name}_{key}']:.3f}" for key in keys))
+    assert cells[7].endswith(f"({means['other_td_level_neutral_weighted_sign_changes']:.3f})")
     run = runs["huri-cvar0.5"]
     assert f"huri-cvar0.5-s0: `python benchmarks/advantages.py {run} --steps {STEPS}`" in section
     assert "huri-baseline-s0" not in section  # PPO has no distortion

@@ -154,7 +154,8 @@ def test_a_save_from_before_the_band_had_a_reading_loads_with_the_absolute_band(
             content = source.read(item.filename)
             if item.filename == "data":
                 data = json.loads(content)
-                for key in ("iqr_band", "iqr_percentiles", "iqr_band_smoothing", "iqr_band_rollouts"):
+                saved = ("iqr_band", "iqr_percentiles", "iqr_band_smoothing", "iqr_band_rollouts", "td_level")
+                for key in saved:
                     del data[key]
                 content = json.dumps(data).encode()
             target.writestr(item, content)

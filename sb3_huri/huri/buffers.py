@@ -8,6 +8,7 @@ import torch as th
 from stable_baselines3.common.buffers import DictRolloutBuffer, RolloutBuffer
 from stable_baselines3.common.type_aliases import TensorDict
 
+from sb3_huri.common.risk_gae import TD_LEVELS, risk_gae
 from sb3_huri.common.sr_lambda import sr_lambda_targets
 
 
@@ -31,8 +32,11 @@ class _RiskAwareRolloutMixin:
     sets the distortion weights ``w(beta_s)`` of each state and its diagnostics (``risk``, ``iqr``,
     ``rnd_error``) with :meth:`set_risk`, and the atoms and distorted value of the final state of each
     truncated episode with :meth:`set_time_out_bootstrap`. :meth:`compute_returns_and_advantage` then
-    computes GAE on the distorted values ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)`` with SB3's own code,
-    and the SR(lambda) target atoms of the quantile loss.
+    computes GAE on the distorted values ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)`` and the SR(lambda)
+    target atoms of the quantile loss. ``td_level`` says at which level a TD error values its two states
+    (``sb3_huri.common.risk_gae``): ``"state"``, each at its own (SB3's GAE on the per-state values), or
+    ``"step"``, both at the level of the state the step starts from; :meth:`advantages_under` gives the
+    rollout's advantages under either.
     """
 
     buffer_size: int
@@ -41,9 +45,19 @@ class _RiskAwareRolloutMixin:
     pos: int
     generator_ready: bool
 
-    def __init__(self, *args: Any, n_quantiles: int = 64, sr_lambda: float = 1.0, **kwargs: Any):
+    def __init__(
+        self,
+        *args: Any,
+        n_quantiles: int = 64,
+        sr_lambda: float = 1.0,
+        td_level: str = "state",
+        **kwargs: Any,
+    ):
+        if td_level not in TD_LEVELS:
+            raise ValueError(f"Unknown td_level {td_level!r}: expected one of {list(TD_LEVELS)}")
         self.n_quantiles = n_quantiles
         self.sr_lambda = sr_lambda
+        self.td_level = td_level
         super().__init__(*args, **kwargs)
 
     def reset(self) -> None:
@@ -53,7 +67,13 @@ class _RiskAwareRolloutMixin:
         self.target_atoms = np.zeros(atom_shape, dtype=np.float32)
         self.bootstrap_atoms = np.zeros(atom_shape, dtype=np.float32)
         self.bootstrap_values = np.zeros(shape, dtype=np.float32)
+        self.bootstrap_weights = np.zeros(atom_shape, dtype=np.float32)
         self.has_time_outs = False
+        # The state after the rollout, set with the risk and by `compute_returns_and_advantage`.
+        self.last_atoms = np.zeros((self.n_envs, self.n_quantiles), dtype=np.float32)
+        self.last_weights = np.full((self.n_envs, self.n_quantiles), 1.0 / self.n_quantiles, dtype=np.float32)
+        self.last_dones = np.zeros(self.n_envs, dtype=np.float32)
+        self.advantages_computed = False
         self.risk = np.zeros(shape, dtype=np.float32)
         self.iqr = np.zeros(shape, dtype=np.float32)
         self.rnd_error = np.zeros(shape, dtype=np.float32)
@@ -86,23 +106,41 @@ class _RiskAwareRolloutMixin:
             return {key: obs.reshape(-1, *obs.shape[2:]) for key, obs in observations.items()}
         return observations.reshape(-1, *observations.shape[2:])
 
-    def set_risk(self, weights: np.ndarray, risk: np.ndarray, iqr: np.ndarray, rnd_error: np.ndarray) -> None:
-        """Set each state's distortion weights ``(T, E, N)`` and its risk parameter, IQR and RND error."""
+    def set_risk(
+        self,
+        weights: np.ndarray,
+        risk: np.ndarray,
+        iqr: np.ndarray,
+        rnd_error: np.ndarray,
+        last_weights: np.ndarray | None = None,
+    ) -> None:
+        """Set each state's distortion weights ``(T, E, N)`` and its risk parameter, IQR and RND error, and
+        the weights of the state after the rollout ``(E, N)`` (neutral if not given)."""
         self.distortion_weights[:] = weights
         self.risk[:], self.iqr[:], self.rnd_error[:] = risk, iqr, rnd_error
+        if last_weights is not None:
+            self.last_weights[:] = last_weights
 
     def set_time_out_bootstrap(
-        self, steps: np.ndarray, envs: np.ndarray, atoms: np.ndarray, values: np.ndarray
+        self,
+        steps: np.ndarray,
+        envs: np.ndarray,
+        atoms: np.ndarray,
+        values: np.ndarray,
+        weights: np.ndarray | None = None,
     ) -> None:
-        """Record the sorted atoms and distorted value of the last states of episodes cut at ``steps``."""
+        """Record the sorted atoms, distorted value and (if given) distortion weights of the last states of
+        episodes cut at ``steps``."""
         self.bootstrap_atoms[steps, envs] = atoms
         self.bootstrap_values[steps, envs] = values
+        if weights is not None:
+            self.bootstrap_weights[steps, envs] = weights
         self.has_time_outs = len(steps) > 0
 
     def compute_returns_and_advantage(  # type: ignore[override]
         self, last_values: th.Tensor, dones: np.ndarray, last_atoms: np.ndarray | None = None
     ) -> None:
-        """GAE on the distorted values and SR(lambda) target atoms.
+        """GAE on the distorted values (under ``td_level``) and SR(lambda) target atoms.
 
         :param last_values: distorted value ``V_beta`` of the state after the rollout, per env
         :param dones: whether each env's last step ended its episode
@@ -110,11 +148,20 @@ class _RiskAwareRolloutMixin:
             only needed for a distributional critic (``n_quantiles > 1``)
         """
         self.values = np.einsum("ten,ten->te", self.distortion_weights, self.atoms).astype(np.float32)
-        # A truncated episode bootstraps from its last state's value, as in SB3's PPO (the step is done).
+        self.last_dones = np.asarray(dones, dtype=np.float32)
+        if last_atoms is not None:
+            self.last_atoms = np.asarray(last_atoms, dtype=np.float32)
+        self.advantages_computed = True
         rewards = self.rewards
-        self.rewards = rewards + self.gamma * self.bootstrap_values
-        super().compute_returns_and_advantage(last_values, dones)  # type: ignore[misc]
-        self.rewards = rewards
+        if self.td_level == "step":
+            assert last_atoms is not None, "each step's own level needs the atoms of the last state"
+            self.advantages = self.advantages_under("step")
+            self.returns = self.advantages + self.values
+        else:
+            # A truncated episode bootstraps from its last state's value, as in SB3's PPO (the step is done).
+            self.rewards = rewards + self.gamma * self.bootstrap_values
+            super().compute_returns_and_advantage(last_values, dones)  # type: ignore[misc]
+            self.rewards = rewards
         if self.n_quantiles > 1:
             assert last_atoms is not None, "a quantile critic needs the atoms of the last state"
             # Sorted once here, so that every epoch's energy distance skips the sort of its targets.
@@ -131,6 +178,22 @@ class _RiskAwareRolloutMixin:
                 rng=np.random.default_rng(np.random.randint(2**31)),  # noqa: NPY002
             )
             self.target_atoms.sort(axis=-1)
+
+    def advantages_under(self, td_level: str) -> np.ndarray:
+        """The rollout's advantages ``(T, E)`` had its TD errors been read under ``td_level``
+        (``sb3_huri.common.risk_gae``), from its atoms, rewards and each state's weights, the buffer left
+        as it is. Available once the rollout's advantages are computed, until ``get()`` reorders the buffer.
+        """
+        assert not self.generator_ready, "the rollout's time order is only available before get()"
+        assert self.advantages_computed, "the rollout's last state is set by compute_returns_and_advantage"
+        time_outs = self.has_time_outs
+        return risk_gae(
+            self.rewards, self.atoms, self.distortion_weights, self.episode_starts,  # type: ignore[attr-defined]
+            self.last_atoms, self.last_weights, self.last_dones, self.gamma, self.gae_lambda,  # type: ignore[attr-defined]
+            td_level,
+            bootstrap_atoms=self.bootstrap_atoms if time_outs else None,
+            bootstrap_weights=self.bootstrap_weights if time_outs else None,
+        )  # fmt: skip
 
     def get(self, batch_size: int | None = None) -> Generator[HuRiRolloutBufferSamples, None, None]:  # type: ignore[override]
         if not self.generator_ready:
@@ -152,6 +215,7 @@ class HuRiRolloutBuffer(_RiskAwareRolloutMixin, RolloutBuffer):
 
     :param n_quantiles: number of critic atoms (1 for a scalar critic)
     :param sr_lambda: SR(lambda) mixing parameter of the critic targets
+    :param td_level: ``"state"`` or ``"step"``, the levels a TD error values its states at
     """
 
 
@@ -160,4 +224,5 @@ class HuRiDictRolloutBuffer(_RiskAwareRolloutMixin, DictRolloutBuffer):
 
     :param n_quantiles: number of critic atoms (1 for a scalar critic)
     :param sr_lambda: SR(lambda) mixing parameter of the critic targets
+    :param td_level: ``"state"`` or ``"step"``, the levels a TD error values its states at
     """

@@ -48,7 +48,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)``, where each state's risk parameter ``beta_s`` is
     ``beta_IQR`` (from the interquartile range of its atoms, Algorithm 1) plus ``tanh`` of its RND novelty.
     The paper's methods are presets (``method``); every knob below overrides its preset. The risk arguments
-    (``method`` to ``iqr_band_smoothing``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
+    (``method`` to ``td_level``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
     ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
     names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others. Defaults are the paper's
     Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
@@ -95,6 +95,9 @@ class HuRiPPO(OnPolicyAlgorithm):
         rollouts, are saved and stay fixed outside training; ``None`` takes the method's
     :param iqr_percentiles: ``(p_min, p_max)`` of the percentile band
     :param iqr_band_smoothing: weight of each new rollout in the percentile band's exponential average
+    :param td_level: at which risk level a TD error of the advantages values its two states
+        (``sb3_huri.common.risk_gae``): ``"state"``, each at its own (the per-state values in SB3's GAE),
+        ``"step"``, both at the level of the state the step starts from; ``None`` takes the method's
     :param sr_lambda: SR(lambda) parameter of the critic targets in ``[0, 1]`` (paper: 1, Monte-Carlo)
     :param quantile_coef: weight of the energy-distance loss (``lambda_quantiles``)
     :param expectation_coef: weight of the expectation loss (``lambda_expectation``)
@@ -157,6 +160,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         iqr_band: str | None = None,
         iqr_percentiles: tuple[float, float] = (30.0, 70.0),
         iqr_band_smoothing: float = 0.5,
+        td_level: str | None = None,
         sr_lambda: float = 1.0,
         quantile_coef: float = 1.0,
         expectation_coef: float = 0.05,
@@ -177,10 +181,13 @@ class HuRiPPO(OnPolicyAlgorithm):
             distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, wang_beta=wang_beta,
             cvar_alpha=cvar_alpha, iqr_thresholds=iqr_thresholds, iqr_risk_levels=iqr_risk_levels,
             iqr_band=iqr_band, iqr_percentiles=iqr_percentiles, iqr_band_smoothing=iqr_band_smoothing,
+            td_level=td_level,
         ))  # fmt: skip
         self.iqr_band_rollouts = 0  # rollouts that moved the percentile band so far
-        if not _init_setup_model and iqr_band is None:  # as `load` builds it: see `_setup_model`
-            del self.iqr_band
+        if not _init_setup_model:  # as `load` builds it: a model saved without them takes its method's
+            for name, given in (("iqr_band", iqr_band), ("td_level", td_level)):
+                if given is None:
+                    delattr(self, name)
         use_rnd = self.risk_model.use_rnd
         self.rnd_kwargs = agreeing("rnd_kwargs", rnd_kwargs, policy_kwargs, default={}) if use_rnd else None
         self.sr_lambda = float(sr_lambda)
@@ -243,6 +250,7 @@ class HuRiPPO(OnPolicyAlgorithm):
             self.n_steps, self.observation_space, self.action_space,  # type: ignore[arg-type]
             device=self.device, gamma=self.gamma, gae_lambda=self.gae_lambda, n_envs=self.n_envs,
             n_quantiles=self.risk_model.n_quantiles, sr_lambda=self.sr_lambda,
+            td_level=self.risk_model.td_level,
         )  # fmt: skip
         self.policy = self.policy_class(  # type: ignore[assignment]
             self.observation_space, self.action_space, self.lr_schedule, use_sde=self.use_sde,
@@ -375,20 +383,21 @@ class HuRiPPO(OnPolicyAlgorithm):
             assessed = self._assess(outputs, critic_inputs)
 
         rollout = RiskReading(*(to_numpy(tensor[:n_rollout]) for tensor in assessed))
-        shape = (buffer.buffer_size, buffer.n_envs)
+        shape, n_last = (buffer.buffer_size, buffer.n_envs), buffer.n_envs
         buffer.set_risk(
             rollout.weights.reshape(*shape, -1),
             rollout.risk.reshape(shape),
             rollout.iqr.reshape(shape),
             rollout.rnd_error.reshape(shape),
+            last_weights=to_numpy(assessed.weights[n_rollout : n_rollout + n_last]),
         )
-        n_last = buffer.n_envs
         if time_outs:
             steps, envs = np.array([t[0] for t in time_outs]), np.array([t[1] for t in time_outs])
             first = n_rollout + n_last
             buffer.set_time_out_bootstrap(
-                steps, envs, to_numpy(assessed.atoms[first:]), to_numpy(assessed.value[first:])
-            )
+                steps, envs, to_numpy(assessed.atoms[first:]), to_numpy(assessed.value[first:]),
+                weights=to_numpy(assessed.weights[first:]),
+            )  # fmt: skip
         buffer.compute_returns_and_advantage(
             last_values=assessed.value[n_rollout : n_rollout + n_last],
             dones=dones,

@@ -23,6 +23,10 @@ class RiskPreset:
     :param iqr_band: how the IQR band's thresholds are read (``sb3_huri.huri.risk.RiskModel``):
         ``"absolute"``, in units of the normalized return (the paper's ``[0.3, 0.7]`` as printed), or
         ``"percentile"``, percentiles of the critic's own IQR over recent rollouts (scale-free)
+    :param td_level: at which risk level a TD error of the advantages values its two states
+        (``sb3_huri.common.risk_gae``): ``"state"``, each at its own (every method), or ``"step"``, both at
+        the level of the state the step starts from (``HuRiPPO(td_level="step")``; docs/huri.md, "Each
+        step at its own level": it did not learn Pendulum)
     """
 
     distributional: bool
@@ -30,6 +34,7 @@ class RiskPreset:
     use_iqr: bool = False
     use_rnd: bool = False
     iqr_band: str = "absolute"
+    td_level: str = "state"
 
 
 METHODS: dict[str, RiskPreset] = {

@@ -19,6 +19,7 @@ import torch as th
 
 from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
 from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
+from sb3_huri.common.risk_gae import TD_LEVELS
 from sb3_huri.huri.methods import DEFAULT_IQR_RISK_LEVELS, METHODS
 
 IQR_BANDS = ("absolute", "percentile")
@@ -102,6 +103,9 @@ class RiskModel:
     :param iqr_percentiles: ``(p_min, p_max)`` in ``[0, 100]``, the percentiles of the percentile band
     :param iqr_band_smoothing: weight of a new rollout in the percentile band's exponential average, in
         ``(0, 1]`` (1: each rollout's own percentiles)
+    :param td_level: the risk level a TD error of the advantages values its two states at
+        (``sb3_huri.common.risk_gae``): ``"state"``, each at its own; ``"step"``, both at the level of the
+        state the step starts from (a quantile critic only)
     """
 
     distributional: bool
@@ -116,6 +120,7 @@ class RiskModel:
     iqr_band: str = "absolute"
     iqr_percentiles: tuple[float, float] = (30.0, 70.0)
     iqr_band_smoothing: float = 0.5
+    td_level: str = "state"
 
     def __post_init__(self) -> None:
         """Check every setting; store the numbers as floats and the sequences as tuples (a loaded model's
@@ -124,6 +129,8 @@ class RiskModel:
             raise ValueError(f"Unknown distortion {self.distortion!r}: expected one of {list(DISTORTIONS)}")
         if self.iqr_band not in IQR_BANDS:
             raise ValueError(f"Unknown iqr_band {self.iqr_band!r}: expected one of {list(IQR_BANDS)}")
+        if self.td_level not in TD_LEVELS:
+            raise ValueError(f"Unknown td_level {self.td_level!r}: expected one of {list(TD_LEVELS)}")
         for name in ("distributional", "use_iqr", "use_rnd"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
@@ -151,11 +158,11 @@ class RiskModel:
         if self.distributional:
             if not (isinstance(self.n_quantiles, int | np.integer) and self.n_quantiles >= 2):
                 raise ValueError(f"n_quantiles must be an integer >= 2, got {self.n_quantiles!r}")
-        elif self.use_iqr or self.use_rnd or self.n_quantiles != 1:
+        elif self.use_iqr or self.use_rnd or self.n_quantiles != 1 or self.td_level != "state":
             raise ValueError(
-                "a scalar critic (distributional=False) takes no risk: use_iqr and use_rnd must be False "
-                f"and n_quantiles 1, got use_iqr={self.use_iqr!r}, use_rnd={self.use_rnd!r}, "
-                f"n_quantiles={self.n_quantiles!r}"
+                "a scalar critic (distributional=False) takes no risk: use_iqr and use_rnd must be False, "
+                f"n_quantiles 1 and td_level 'state', got use_iqr={self.use_iqr!r}, "
+                f"use_rnd={self.use_rnd!r}, n_quantiles={self.n_quantiles!r}, td_level={self.td_level!r}"
             )
         object.__setattr__(self, "n_quantiles", int(self.n_quantiles))
 
@@ -175,10 +182,11 @@ class RiskModel:
         iqr_band: str | None = None,
         iqr_percentiles: tuple[float, float] = (30.0, 70.0),
         iqr_band_smoothing: float = 0.5,
+        td_level: str | None = None,
     ) -> "RiskModel":
         """The model HuRiPPO's risk arguments describe (all of them: their defaults are HuRiPPO's): the
         preset of ``method`` (``sb3_huri.huri.methods``) with the given settings overriding its own. ``None``
-        takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``, ``iqr_band``), 64 atoms
+        takes the preset's (``distortion``, ``use_iqr``, ``use_rnd``, ``iqr_band``, ``td_level``), 64 atoms
         (``n_quantiles``; a scalar critic has 1) and the distortion's levels (``iqr_risk_levels``: Wang
         ``(-1, 0, 1)``, CVaR ``(1, 1, 0.5)``, paper A.8).
 
@@ -188,12 +196,16 @@ class RiskModel:
         if method not in METHODS:
             raise ValueError(f"Unknown method {method!r}: expected one of {list(METHODS)}")
         preset = METHODS[method]
-        if not preset.distributional and (distortion is not None or use_iqr or use_rnd or iqr_band):
+        risk_settings = (distortion is not None, use_iqr, use_rnd, iqr_band, td_level)
+        if not preset.distributional and any(risk_settings):
             raise ValueError(
-                f"distortion, use_iqr, use_rnd and iqr_band need a quantile critic: method={method!r} has a "
-                f"scalar critic (choose one of {[name for name, p in METHODS.items() if p.distributional]})"
+                "distortion, use_iqr, use_rnd, iqr_band and td_level need a quantile critic: "
+                f"method={method!r} has a scalar critic (choose one of "
+                f"{[name for name, p in METHODS.items() if p.distributional]})"
             )
-        overrides = dict(distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, iqr_band=iqr_band)
+        overrides = dict(
+            distortion=distortion, use_iqr=use_iqr, use_rnd=use_rnd, iqr_band=iqr_band, td_level=td_level
+        )
         preset = replace(preset, **{key: value for key, value in overrides.items() if value is not None})
         if iqr_risk_levels is None:
             iqr_risk_levels = DEFAULT_IQR_RISK_LEVELS.get(preset.distortion, (0.0, 0.0, 0.0))
@@ -212,6 +224,7 @@ class RiskModel:
             iqr_band=preset.iqr_band,
             iqr_percentiles=iqr_percentiles,
             iqr_band_smoothing=iqr_band_smoothing,
+            td_level=preset.td_level,
         )
 
     @classmethod

@@ -5,7 +5,8 @@ saved state dicts. Two kinds of save need more than that, so that every committe
 
 - a model saved by an earlier version: its method was named by ``variant`` (``method_of_saved`` gives today's
   name), and one saved before the IQR band had a reading of its own has no ``iqr_band`` (it takes its
-  method's, the absolute band);
+  method's, the absolute band), nor one saved before the TD error's levels had a reading a ``td_level``
+  (its method's: ``"state"``);
 - a model saved with one learning rate, loaded with ``critic_learning_rate``: its optimizer state holds one
   parameter group where the optimizer now has the actor's and the critic's, so Adam starts afresh.
 """
@@ -20,12 +21,13 @@ from sb3_huri.huri.methods import METHODS, method_of_saved
 
 def upgrade_saved_attributes(attributes: dict[str, Any]) -> None:
     """Bring a loaded model's attributes (its ``__dict__``, holding ``method``) to today's names in place:
-    ``variant`` becomes ``method``, and a missing ``iqr_band`` takes the method's (``"absolute"`` for a
-    method no preset names)."""
+    ``variant`` becomes ``method``, and a missing ``iqr_band`` or ``td_level`` takes the method's
+    (``"absolute"`` and ``"state"`` for a method no preset names)."""
     attributes["method"] = method_of_saved(attributes) or attributes["method"]
     attributes.pop("variant", None)
     preset = METHODS.get(attributes["method"])
     attributes.setdefault("iqr_band", preset.iqr_band if preset is not None else "absolute")
+    attributes.setdefault("td_level", preset.td_level if preset is not None else "state")
 
 
 def fitting_optimizer_state(params: dict[str, Any], optimizer: th.optim.Optimizer) -> dict[str, Any]:

@@ -19,10 +19,15 @@ rollouts:
 2. For each measured rollout it computes the advantages again from the same atoms, rewards and episode ends
    under one risk level for every state (``constant_risk_advantages``): the neutral one (Wang ``beta = 0``,
    CVaR ``alpha = 1``: the critic's mean, what a risk-free HuRi would use) and the rollout's mean risk
-   level (the same distortion with the per-state adaptation removed).
+   level (the same distortion with the per-state adaptation removed); and under the same per-state levels
+   read the other way (``other_td_level``, ``sb3_huri.common.risk_gae``): each TD error at the level of the
+   state its step starts from for an agent that trained on each value at its own state's level, and the
+   reverse for one that trained on the former.
 3. Against each: the Pearson correlation of the agent's advantages with them (dominated by the largest
    advantages), the share of samples whose advantage changes sign (dominated by the many small ones) and
-   that share weighted by the size of the agent's advantage (how much of the signal turns around).
+   that share weighted by the size of the agent's advantage (how much of the signal turns around). The
+   other reading is also held against the neutral level (``other_td_level["neutral"]``): how far an agent
+   reading its levels that way would move the signal on the same states.
 
 The results go to ``<run>/evaluations/<steps>-advantages.json``; ``benchmarks/advantages.py`` is the command
 line, the campaign measures every evaluated agent with a quantile critic, and the results page shows them.
@@ -47,8 +52,18 @@ from sb3_huri.runner.record import EVALUATIONS
 ADVANTAGES_SUFFIX = "-advantages.json"
 """A checkpoint's advantage measures are in its run's ``evaluations/`` folder, ``<steps>-advantages.json``."""
 DEFAULT_SEED = 2000
-COMPARATORS = ("neutral", "constant")
-"""The constant risk levels the agent's advantages are held against: the neutral one, the rollout's mean."""
+COMPARATORS = ("neutral", "constant", "other_td_level")
+"""What the agent's advantages are held against: the neutral risk level, the rollout's mean level (both one
+level for every state), and the per-state levels under the other reading of a TD error's levels."""
+SHOWN_WITHOUT = ("other_td_level",)
+"""Comparators a file may lack and still be shown (``measured_record(..., shown=True)``): those added after
+files were written for checkpoints that no run holds any more, which cannot be measured again."""
+COMPARATOR_TEXT = {
+    "neutral": "the neutral level",
+    "constant": "the rollout's mean level",
+    "other_td_level": "its levels read per {reading}",
+}
+"""Each comparator in words (``{reading}``: the other TD reading, ``state`` or ``step``)."""
 MEASURES = ("correlation", "sign_changes", "weighted_sign_changes")
 """What ``signal_change`` gives for each comparator."""
 
@@ -105,14 +120,19 @@ def signal_change(own: np.ndarray, other: np.ndarray) -> dict[str, float]:
 
 def rollout_measures(model: Any, last_atoms: np.ndarray, dones: np.ndarray) -> dict[str, Any]:
     """The measures of the rollout just collected (module docstring, items 2-3): its risk levels, and its
-    advantages against the neutral and the constant mean risk level."""
+    advantages against the neutral and the constant mean risk level and under the other TD reading."""
     buffer = model.rollout_buffer
     own, risk = buffer.advantages.copy(), buffer.risk.copy()
-    levels = {"neutral": neutral_level(model.risk_model.distortion), "constant": float(risk.mean())}
+    other_reading = "step" if buffer.td_level == "state" else "state"
     measures: dict[str, Any] = {"risk_mean": float(risk.mean()), "risk_sd": float(risk.std())}
+    other_td = buffer.advantages_under(other_reading)  # before the constant levels overwrite the buffer's
+    measures["other_td_level"] = {"level": other_reading, **signal_change(own, other_td)}
+    levels = {"neutral": neutral_level(model.risk_model.distortion), "constant": float(risk.mean())}
     for name, level in levels.items():
         other = constant_risk_advantages(model, last_atoms, dones, level)
         measures[name] = {"level": level, **signal_change(own, other)}
+        if name == "neutral":
+            measures["other_td_level"]["neutral"] = signal_change(other_td, other)
     return measures
 
 
@@ -256,29 +276,39 @@ def _rollout(model: Any, env: Any, callback: Any, measure: bool) -> dict[str, An
     return rollout_measures(model, last_atoms, model._last_episode_starts)
 
 
-def measured_record(path: Path) -> dict[str, Any] | None:
+def measured_record(path: Path, shown: bool = False) -> dict[str, Any] | None:
     """The advantage measures at ``path`` if the file holds every measure of every comparator for each of
-    its rollouts (None for no file, or one written before a measure was added: to be measured again)."""
+    its rollouts (None for no file, or one written before a measure was added: to be measured again).
+    ``shown``: a file that lacks only comparators of ``SHOWN_WITHOUT`` will do (the results page shows what
+    it holds)."""
     if not path.is_file():
         return None
     record = read_json(path, "an agent's advantage measures")
     rollouts = record.get("rollouts") if isinstance(record, dict) else None
+    wanted = [name for name in COMPARATORS if not (shown and name in SHOWN_WITHOUT)]
     complete = bool(rollouts) and all(
-        key in rollout.get(name, {}) for rollout in rollouts for name in COMPARATORS for key in MEASURES
+        key in rollout.get(name, {}) for rollout in rollouts for name in wanted for key in MEASURES
     )
+    if complete and "other_td_level" in wanted:  # and the other reading against the neutral level
+        complete = all(key in r["other_td_level"].get("neutral", {}) for r in rollouts for key in MEASURES)
     return record if complete and "curriculum" in record else None
 
 
 def summary(record: dict[str, Any]) -> dict[str, Any]:
     """The measured rollouts' means (risk level and its spread over states, each comparator's measures) and
-    each measure's range over the rollouts (``<name>_range``)."""
+    each measure's range over the rollouts (``<name>_range``); a comparator the file lacks is left out."""
     rollouts = record["rollouts"]
     means = {key: float(np.mean([r[key] for r in rollouts])) for key in ("risk_mean", "risk_sd")}
-    for name in COMPARATORS:
+    for name in (name for name in COMPARATORS if name in rollouts[0]):
         for key in MEASURES:
             values = [r[name][key] for r in rollouts]
             means[f"{name}_{key}"] = float(np.mean(values))
             means[f"{name}_{key}_range"] = (float(np.min(values)), float(np.max(values)))
+    if "neutral" in rollouts[0].get("other_td_level", {}):
+        for key in MEASURES:
+            values = [r["other_td_level"]["neutral"][key] for r in rollouts]
+            means[f"other_td_level_neutral_{key}"] = float(np.mean(values))
+            means[f"other_td_level_neutral_{key}_range"] = (float(np.min(values)), float(np.max(values)))
     return means
 
 
@@ -294,10 +324,19 @@ def advantages_text(path: Path) -> str:
         f"(seed {settings['seed']}), {record['eval_s']:.0f} s",
         f"risk level: mean {means['risk_mean']:+.3f}, sd over states {means['risk_sd']:.3f}",
     ]
-    for name in COMPARATORS:
-        cells = []
-        for key in MEASURES:
-            low, high = means[f"{name}_{key}_range"]
-            cells.append(f"{key.replace('_', ' ')} {means[f'{name}_{key}']:.3f} [{low:.3f}, {high:.3f}]")
-        lines.append(f"against the {name} level: " + ", ".join(cells))
+    reading = record["rollouts"][0].get("other_td_level", {}).get("level")
+    for name in (name for name in COMPARATORS if name in record["rollouts"][0]):
+        lines.append(f"against {COMPARATOR_TEXT[name].format(reading=reading)}: " + _cells(means, name))
+    if "other_td_level_neutral_correlation" in means:
+        cells = _cells(means, "other_td_level_neutral")
+        lines.append(f"its levels read per {reading}, against the neutral level: {cells}")
     return "\n".join(lines)
+
+
+def _cells(means: dict[str, Any], prefix: str) -> str:
+    """The measures of ``summary``'s keys under ``prefix``, each with its range over the rollouts."""
+    cells = []
+    for key in MEASURES:
+        low, high = means[f"{prefix}_{key}_range"]
+        cells.append(f"{key.replace('_', ' ')} {means[f'{prefix}_{key}']:.3f} [{low:.3f}, {high:.3f}]")
+    return ", ".join(cells)

@@ -8,7 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from sb3_huri.experiments.analyses.advantages import MEASURES, advantages_path, measured_record, summary
+from sb3_huri.experiments.analyses.advantages import (
+    COMPARATORS,
+    MEASURES,
+    advantages_path,
+    measured_record,
+    summary,
+)
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.campaign.results.markdown import millions
 from sb3_huri.experiments.campaign.results.risk_levels import evaluated_steps, measure_command
@@ -29,7 +35,11 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         "curriculum stage, stochastic actions, about one episode of warm-up, then the rollouts measured: "
         "`states`), its advantages are held against those of the same rollouts under one risk level for "
         "every state: the neutral level (Wang `beta = 0`, the critic's mean) and the rollout's mean level "
-        "(the same distortion, not adapted per state). Against each: the correlation (dominated by the "
+        "(the same distortion, not adapted per state); and against its own per-state levels read the "
+        'other way (`sb3_huri.common.risk_gae`; docs/huri.md, "Each step at its own level"): for an agent '
+        "that trained on each value at its own state's level (`td_level` `state`, every method's), each TD "
+        "error at the level of the state its step starts from (`step`), and the reverse. Against each: the "
+        "correlation (dominated by the "
         "largest advantages), the share of advantages whose sign changes (dominated by the many small "
         "ones) and that share weighted by the advantage's size; means over the rollouts measured "
         f"(`{SCRIPT}` prints their ranges). The same learning signal would give 1 / 0 / 0. These describe "
@@ -42,7 +52,7 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         steps = evaluated_steps(entry)
         if preset is None or not preset.distributional or steps is None:
             continue
-        record = measured_record(advantages_path(entry.run, steps))
+        record = measured_record(advantages_path(entry.run, steps), shown=True)
         if record is None:
             held = steps in saved_models(entry.run, entry.env_id)
             how = measure_command(entry, SCRIPT) if held else "its run no longer holds that checkpoint"
@@ -53,15 +63,19 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         curriculum = record.get("curriculum")
         cells = [f"{states:,}", "-" if curriculum is None else f"{curriculum['scale']:g}"]
         cells.append(f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})")
-        for name in ("neutral", "constant"):
-            cells.append(" / ".join(f"{means[f'{name}_{key}']:.3f}" for key in MEASURES))
+        for name in COMPARATORS:
+            measured = f"{name}_{MEASURES[0]}" in means
+            cells.append(" / ".join(f"{means[f'{name}_{key}']:.3f}" for key in MEASURES) if measured else "-")
+        if "other_td_level_neutral_weighted_sign_changes" in means:
+            cells[-1] += f" ({means['other_td_level_neutral_weighted_sign_changes']:.3f})"
         rows.append(f"| {entry.name} @ {millions(steps)} | {entry.method} | " + " | ".join(cells) + " |")
     if rows:
         lines += [
             "| agent | method | states | curriculum scale | risk level: mean (sd over states) | against the "
             "neutral level: correlation / sign changes / weighted | against the rollout's mean level: "
-            "correlation / sign changes / weighted |",
-            "|---|---|---|---|---|---|---|",
+            "correlation / sign changes / weighted | against its levels read the other way: correlation / "
+            "sign changes / weighted (that reading against the neutral level: weighted) |",
+            "|---|---|---|---|---|---|---|---|",
             *rows,
             "",
         ]

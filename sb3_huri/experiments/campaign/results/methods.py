@@ -76,7 +76,7 @@ def _signal_lines(methods: Sequence[Evaluated]) -> list[str]:
     """How much of each method's learning signal its risk distortion turns around (section 6c's measure
     against the neutral level, by size), where every one of ``methods`` was measured at its evaluated
     checkpoint; nothing otherwise."""
-    records = [measured_record(advantages_path(m.entry.run, m.steps)) for m in methods]
+    records = [measured_record(advantages_path(m.entry.run, m.steps), shown=True) for m in methods]
     if any(record is None for record in records):
         return []
     shares = [
