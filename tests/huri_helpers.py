@@ -79,3 +79,19 @@ def tiny_robust_preset(folder: Path, n_timesteps: int = 384, name: str = "tiny.y
     path = folder / name
     path.write_text(yaml.safe_dump({"Zerith1-v0": preset}))
     return path
+
+
+def gae(rewards, values, starts, last_values, last_dones, gamma, lam) -> np.ndarray:
+    """Generalized advantage estimation, step by step: `rewards`, `values` and `starts` of shape ``(steps,
+    envs)``, the values after the last step and whether each env's last step ended an episode."""
+    advantages = np.zeros_like(rewards)
+    running = np.zeros(rewards.shape[1])
+    for t in reversed(range(len(rewards))):
+        if t == len(rewards) - 1:
+            following, alive = last_values, 1.0 - last_dones
+        else:
+            following, alive = values[t + 1], 1.0 - starts[t + 1]
+        delta = rewards[t] + gamma * following * alive - values[t]
+        running = delta + gamma * lam * alive * running
+        advantages[t] = running
+    return advantages

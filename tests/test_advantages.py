@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import torch as th
 import yaml
-from huri_helpers import ROOT, tiny_robust_preset
+from huri_helpers import ROOT, gae, tiny_robust_preset
 from scipy import stats
 
 from sb3_huri.experiments.analyses.advantages import (
@@ -59,21 +59,6 @@ def _wang_weights(beta: float, n: int) -> np.ndarray:
     return np.diff(levels)
 
 
-def _gae(rewards, values, starts, last_values, last_dones, gamma, lam) -> np.ndarray:
-    """Generalized advantage estimation, step by step."""
-    advantages = np.zeros_like(rewards)
-    running = np.zeros(rewards.shape[1])
-    for t in reversed(range(len(rewards))):
-        if t == len(rewards) - 1:
-            following, alive = last_values, 1.0 - last_dones
-        else:
-            following, alive = values[t + 1], 1.0 - starts[t + 1]
-        delta = rewards[t] + gamma * following * alive - values[t]
-        running = delta + gamma * lam * alive * running
-        advantages[t] = running
-    return advantages
-
-
 def _collected(run: Path) -> tuple[object, object, np.ndarray, np.ndarray]:
     """The run's model after one rollout of 4 robots in 12-step episodes (time-outs inside the rollout):
     model, env, the sorted atoms of the states after the rollout and whether each robot's last step ended."""
@@ -106,7 +91,7 @@ def test_constant_risk_advantages_are_gae_on_that_levels_value(runs) -> None:
 
     weights = _wang_weights(0.7, buffer.atoms.shape[-1])
     rewards = buffer.rewards + buffer.gamma * (buffer.bootstrap_atoms @ weights)  # time-outs bootstrapped
-    expected = _gae(
+    expected = gae(
         rewards, buffer.atoms @ weights, buffer.episode_starts, last_atoms @ weights, dones, buffer.gamma,
         buffer.gae_lambda,
     )  # fmt: skip

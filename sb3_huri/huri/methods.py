@@ -40,6 +40,10 @@ class RiskPreset:
 METHODS: dict[str, RiskPreset] = {
     # PPO: scalar critic, MSE value loss, GAE on the value; same asymmetric networks.
     "huri-baseline": RiskPreset(distributional=False),
+    # The quantile critic of every HuRi method (energy distance, SR(lambda) targets) with a risk-neutral
+    # value: beta fixed at wang_beta (0), no IQR band, no RND. At beta = 0 the weights are uniform, V_beta is
+    # the atom mean and eq. 5's distorted expectation loss is identically zero (DPPO with a neutral measure).
+    "huri-neutral": RiskPreset(distributional=True, distortion="wang"),
     # Quantile critic, CVaR distortion at the fixed level alpha = cvar_alpha (0.5).
     "huri-cvar0.5": RiskPreset(distributional=True, distortion="cvar"),
     # Wang distortion with beta = beta_IQR only (paper: HuRi w/o RND).

@@ -267,6 +267,15 @@ class RiskModel:
         """The risk level without ``use_iqr``: ``wang_beta`` or ``cvar_alpha``."""
         return self.wang_beta if self.distortion == "wang" else self.cvar_alpha
 
+    @property
+    def risk_neutral(self) -> bool:
+        """Whether every state's value is the plain atom mean: a quantile critic at a fixed neutral level
+        (Wang ``beta = 0`` or CVaR ``alpha = 1``) with neither the IQR band nor RND (``huri-neutral``)."""
+        neutral_level = 0.0 if self.distortion == "wang" else 1.0
+        return (
+            self.distributional and not self.use_iqr and not self.use_rnd and self.fixed_level == neutral_level
+        )
+
     def assess(self, outputs: th.Tensor, rnd_error: th.Tensor | None) -> RiskReading:
         """Sort the atoms, then per state: IQR, risk level, distortion weights, distorted value ``V_beta``.
 
@@ -291,7 +300,10 @@ class RiskModel:
         risk = risk_iqr + risk_rnd
         if self.distortion == "cvar":
             risk = th.clamp(risk, max=1.0)
-        weights = distortion_weights(self.distortion, risk, self.n_quantiles)
+        if self.risk_neutral:  # exactly uniform, where Phi(Phi^-1(tau)) would be uniform up to rounding
+            weights = th.full_like(atoms, 1.0 / self.n_quantiles)
+        else:
+            weights = distortion_weights(self.distortion, risk, self.n_quantiles)
         value = (weights * atoms).sum(dim=-1)
         return RiskReading(atoms, value, risk, weights, iqr, rnd_error, risk_iqr, risk_rnd)
 
