@@ -233,8 +233,8 @@ def test_importing_rl_zoo3_registers_every_method_and_the_env() -> None:
 
 def test_the_methods_are_the_presets_names_in_order() -> None:
     assert METHODS == (
-        "huri-baseline", "huri-neutral", "huri-cvar0.5", "huri-no-rnd", "huri-no-iqr", "huri", "huri-percentile",
-        "huri-cvar",
+        "huri-baseline", "huri-neutral", "huri-cvar0.5", "huri-no-rnd", "huri-no-iqr", "huri",
+        "huri-percentile", "huri-cvar",
     )  # fmt: skip
     assert tuple(sb3_huri.METHODS) == METHODS
 

@@ -272,9 +272,8 @@ class RiskModel:
         """Whether every state's value is the plain atom mean: a quantile critic at a fixed neutral level
         (Wang ``beta = 0`` or CVaR ``alpha = 1``) with neither the IQR band nor RND (``huri-neutral``)."""
         neutral_level = 0.0 if self.distortion == "wang" else 1.0
-        return (
-            self.distributional and not self.use_iqr and not self.use_rnd and self.fixed_level == neutral_level
-        )
+        fixed = not self.use_iqr and not self.use_rnd
+        return self.distributional and fixed and self.fixed_level == neutral_level
 
     def assess(self, outputs: th.Tensor, rnd_error: th.Tensor | None) -> RiskReading:
         """Sort the atoms, then per state: IQR, risk level, distortion weights, distorted value ``V_beta``.
