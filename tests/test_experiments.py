@@ -358,15 +358,21 @@ def test_confidence_intervals_use_students_t() -> None:
 
 
 def test_survival_intervals_are_wilsons() -> None:
-    from scipy import stats
-
-    for survived, episodes in ((0, 20), (1, 20), (13, 20), (20, 20), (61, 100), (297, 300)):
-        expected = stats.binomtest(survived, episodes).proportion_ci(method="wilson")
-        low, high = wilson_interval(survived / episodes, episodes)
-        assert (low, high) == pytest.approx((expected.low, expected.high), abs=1e-3)
+    """SciPy's Wilson interval, pinned to the score interval's closed form the tables used before (at
+    z = 1.96: the same to 1e-5) and to a few printed values."""
+    for survived, episodes in ((0, 20), (1, 20), (13, 20), (20, 20), (37, 50), (61, 100), (297, 300)):
+        share, z, n = survived / episodes, 1.96, episodes
+        centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+        half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+        low, high = wilson_interval(share, episodes)
+        assert (low, high) == pytest.approx((max(centre - half, 0.0), min(centre + half, 1.0)), abs=1e-5)
+    assert wilson_interval(37 / 50, 50) == pytest.approx((0.6045, 0.8413), abs=5e-5)
+    assert wilson_interval(0.0, 20) == pytest.approx((0.0, 0.1611), abs=5e-5)
     assert wilson_interval(0.0, 20)[1] > 0.1 and wilson_interval(1.0, 20)[0] < 0.9  # never empty at 0 or 1
     with pytest.raises(ValueError, match="at least one episode"):
         wilson_interval(0.5, 0)
+    with pytest.raises(ValueError, match=r"in \[0, 1\]"):
+        wilson_interval(1.5, 20)
 
 
 def _paired(both: int, only_first: int, only_second: int, neither: int) -> tuple[np.ndarray, np.ndarray]:

@@ -282,6 +282,47 @@ def test_methods_that_share_a_ppo_evaluation_stand_side_by_side_and_against_huri
     assert f"{finding}the same robots: {mean_cell}" in page
 
 
+def test_two_seeds_of_a_pair_give_the_comparison_over_seeds_and_lead_the_headline(tmp_path: Path) -> None:
+    """HuRi and PPO seeds 0 and 1: each seed's paired Table-1 difference, their mean with a t interval over
+    the two seeds (1 degree of freedom) and the count, in section 2 and first in the headline."""
+    (tmp_path / "preset.yml").write_text("Zerith1-v0: {}\n")
+    rng = np.random.default_rng(11)
+    outcomes, entries = {}, []
+    for index, (method, seed) in enumerate((m, s) for s in (0, 1) for m in ("huri", "huri-baseline")):
+        name, folder = f"{method}-s{seed}", tmp_path / method / f"{ENV}_{index}"
+        _run(folder, 1000, 100.0, "machine A")
+        outcomes[name] = _evaluation(folder, name, method, seed, 1000, rng)
+        entries.append({"name": name, "protocol": "robust", "method": method, "seed": seed, "steps": 1000,
+                        "run": f"{method}/{ENV}_{index}", "conf": "preset.yml"})  # fmt: skip
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump({"entries": entries}))
+    page = write_results(tmp_path / "campaign.yml", tmp_path / "docs" / "results.md").read_text()
+    per_seed = []
+    for seed in (0, 1):
+        huri, ppo = outcomes[f"huri-s{seed}"], outcomes[f"huri-baseline-s{seed}"]
+        robots = np.mean([huri[c].astype(float) - ppo[c] for c in TABLE1_SCENARIOS], axis=0)
+        half = stats.t.ppf(0.975, ROBOTS - 1) * robots.std(ddof=1) / math.sqrt(ROBOTS)
+        per_seed.append(robots.mean())
+        cell = f"{robots.mean():+.3f} [{robots.mean() - half:+.3f}, {robots.mean() + half:+.3f}]"
+        assert _row(page, str(seed), "**HuRi minus PPO over seeds**")[2] == cell
+    mean = np.mean(per_seed)
+    half = stats.t.ppf(0.975, 1) * np.std(per_seed, ddof=1) / math.sqrt(2)
+    over = f"{mean:+.3f} [{mean - half:+.3f}, {mean + half:+.3f}]"
+    assert _row(page, "**mean over 2 seeds** (t over seeds)", "### Over seeds")[2] == over
+    headline = page[page.index("## What the numbers show") :].splitlines()[2]
+    below = sum(d < 0 for d in per_seed)
+    assert headline.startswith("- **Over 2 seeds (0, 1), HuRi minus PPO, robust protocol, ~0.0M steps, ")
+    assert (
+        f"Table-1 mean on the same robots: {over} (95% t interval over the seeds); below 0 in {below} of 2"
+        in headline
+    )
+
+
+def test_one_seed_per_method_is_said_first(campaign) -> None:
+    root, _ = campaign
+    headline = _page(root)[_page(root).index("## What the numbers show") :].splitlines()[2]
+    assert headline.startswith("- **Every comparison below rests on one seed per method**")
+
+
 def test_figures_are_drawn_small_and_linked(campaign) -> None:
     root, _ = campaign
     page = _page(root)

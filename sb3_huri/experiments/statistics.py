@@ -28,14 +28,19 @@ def mean_ci(values: Sequence[float | None]) -> tuple[float, float, int]:
     return float(finite.mean()), float(stdtrit(n - 1, 0.975) * finite.std(ddof=1) / math.sqrt(n)), n
 
 
-def wilson_interval(share: float, n: int, z: float = 1.96) -> tuple[float, float]:
+def wilson_interval(share: float, n: int) -> tuple[float, float]:
     """The 95% Wilson score interval of a share (e.g. ``survive``) observed over ``n`` episodes: unlike the
-    normal approximation it stays within [0, 1] and is not empty at a share of 0 or 1."""
+    normal approximation it stays within [0, 1] and is not empty at a share of 0 or 1. SciPy's
+    (``binomtest(...).proportion_ci(method="wilson")``) of the count ``share * n``, rounded to a whole
+    number of episodes."""
+    from scipy.stats import binomtest  # on first use: importing scipy.stats costs a command 0.3 s
+
     if n <= 0:
         raise ValueError(f"a share needs at least one episode, got n={n}")
-    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(centre - half, 0.0), min(centre + half, 1.0)
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"a share is in [0, 1], got {share}")
+    interval = binomtest(round(share * n), n).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(interval.low), float(interval.high)
 
 
 def paired_difference_interval(first: np.ndarray, second: np.ndarray) -> tuple[float, float, float]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +43,13 @@ def findings_section(
     """Generated sentences: what the evaluations show, and what they cannot show yet; ``more``: further
     findings (lines of the list) of other robots' sections."""
     lines = ["## What the numbers show, and what they do not", ""]
+    over_seeds = seed_comparisons(pairs(evaluations))
+    lines += [f"- **{comparison.sentence()}**" for comparison in over_seeds]
+    if not over_seeds:
+        lines.append(
+            "- **Every comparison below rests on one seed per method**: no protocol has two seeds of a "
+            "method and of PPO evaluated at comparable steps yet, so no claim here holds over seeds."
+        )
     states = {entry.name: entry.state() for entry in entries}
     done = [name for name, state in states.items() if state in ("done", "measure")]
     lines.append(
@@ -348,24 +356,95 @@ def pairs_section(entries: Sequence[CampaignEntry], evaluations: Sequence[Evalua
     return lines
 
 
-def _seed_differences(found: Sequence[tuple[Evaluated, Evaluated]]) -> list[str]:
-    """The Table-1 mean difference averaged over the seeds of each protocol and method, with a t interval
-    over the seeds, where at least two seeds are paired at comparable steps."""
-    lines = []
+@dataclass(frozen=True)
+class SeedComparison:
+    """A method against PPO over the seeds of one protocol paired at comparable steps: each seed's paired
+    Table-1 mean difference on the same robots, and their mean with a 95% t interval over the seeds."""
+
+    protocol: str
+    method: str
+    pairs: tuple[tuple[Evaluated, Evaluated], ...]
+    differences: tuple[tuple[float, float, float], ...]
+    """Each seed's ``(difference, low, high)``: the interval over its robots."""
+    mean: float
+    half: float
+    """Half width of the 95% Student's t interval of ``mean`` over the seeds."""
+
+    @property
+    def seeds(self) -> list[int]:
+        return [first.entry.seed for first, _ in self.pairs]
+
+    @property
+    def below(self) -> int:
+        """Seeds whose difference is below 0 (the method survived less than PPO)."""
+        return sum(difference < 0 for difference, _, _ in self.differences)
+
+    def sentence(self) -> str:
+        """The comparison in one sentence, its count of seeds first."""
+        name = method_label(self.method)
+        low, high = self.mean - self.half, self.mean + self.half
+        return (
+            f"Over {len(self.pairs)} seeds ({', '.join(map(str, self.seeds))}), {name} minus PPO, "
+            f"{self.protocol} protocol, ~{millions(self.pairs[0][0].steps)} steps, Table-1 mean on the same "
+            f"robots: {difference_cell(self.mean, low, high)} (95% t interval over the seeds); below 0 in "
+            f"{self.below} of {len(self.pairs)} seeds: " + verdict(low, high, name, "PPO") + "."
+        )
+
+
+def seed_comparisons(found: Sequence[tuple[Evaluated, Evaluated]]) -> list[SeedComparison]:
+    """Every (protocol, method) with at least two seeds paired with PPO at comparable steps (``pairs``),
+    one comparison per group of comparable steps."""
     groups: dict[tuple[str, str], list[tuple[Evaluated, Evaluated]]] = {}
     for first, second in found:
         groups.setdefault((first.entry.protocol, first.entry.method), []).append((first, second))
+    comparisons = []
     for (protocol, method), members in groups.items():
         for cluster in _clusters([first for first, _ in members]):
             if len(cluster) < 2:
                 continue
-            chosen = [next(p for p in members if p[0] is first) for first in cluster]
-            mean, half, n = mean_ci([mean_difference(a, b)[0] for a, b in chosen])
+            chosen = tuple(next(p for p in members if p[0] is first) for first in cluster)
+            differences = tuple(mean_difference(a, b) for a, b in chosen)
+            mean, half, _ = mean_ci([difference for difference, _, _ in differences])
+            comparisons.append(SeedComparison(protocol, method, chosen, differences, mean, half))
+    return comparisons
+
+
+def _seed_differences(found: Sequence[tuple[Evaluated, Evaluated]]) -> list[str]:
+    """The seed-level comparison of each protocol and method with two or more paired seeds: each seed's
+    paired difference, their mean with a t interval over the seeds, the count of seeds."""
+    comparisons = seed_comparisons(found)
+    if not comparisons:
+        return []
+    lines = [
+        "### Over seeds",
+        "",
+        "Each seed's Table-1 mean difference is paired on the same robots (its interval is over those "
+        "robots, as above); the mean over seeds has a 95% Student's t interval over the seeds, which are "
+        "the independent units here. With two or three seeds that interval is wide: it says how little "
+        "the seeds agree, not that the methods are equal.",
+        "",
+    ]
+    for comparison in comparisons:
+        name = method_label(comparison.method)
+        lines += [
+            f"**{name} minus PPO over seeds** ({comparison.protocol} protocol)",
+            "",
+            f"| seed | steps ({name} / PPO) | difference, Table-1 mean [95% over robots] |",
+            "|---|---|---|",
+        ]
+        for (first, second), (difference, low, high) in zip(
+            comparison.pairs, comparison.differences, strict=True
+        ):
             lines.append(
-                f"- {method_label(method)} minus PPO, {protocol} protocol, over {n} seeds at "
-                f"~{cluster[0].steps:,} steps: Table-1 mean difference {mean:+.3f} ± {half:.3f} "
-                "(95% t interval over the seeds): "
-                + verdict(mean - half, mean + half, method_label(method), "PPO")
-                + "."
+                f"| {first.entry.seed} | {first.steps:,} / {second.steps:,} | "
+                f"{difference_cell(difference, low, high)} |"
             )
-    return [*lines, ""] if lines else []
+        low, high = comparison.mean - comparison.half, comparison.mean + comparison.half
+        lines += [
+            f"| **mean over {len(comparison.pairs)} seeds** (t over seeds) | - | "
+            f"{difference_cell(comparison.mean, low, high)} |",
+            "",
+            f"- {comparison.sentence()}",
+            "",
+        ]
+    return lines
