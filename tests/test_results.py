@@ -323,6 +323,39 @@ def test_one_seed_per_method_is_said_first(campaign) -> None:
     assert headline.startswith("- **Every comparison below rests on one seed per method**")
 
 
+def test_the_value_baseline_section_shows_each_measured_agent_and_the_command_for_the_others(
+    campaign,
+) -> None:
+    root, _ = campaign
+    record = {
+        "steps": 1010, "method": "huri", "model": f"{ENV}.zip", "falls": 12, "before_fall_states": 300,
+        "risk_before_fall": -0.45, "risk_elsewhere": -0.06,
+        "explained_variance": {"value": 0.45, "atom_mean": 0.57},
+        "per_rollout": [{"value": 0.40, "atom_mean": 0.52}, {"value": 0.50, "atom_mean": 0.61}],
+        "settings": {"rollouts": 2, "robots": 4, "rollout_steps": 8, "pre_fall_steps": 25},
+    }  # fmt: skip
+    path = root / "huri" / f"{ENV}_1" / "evaluations" / "1010-value_baseline.json"
+    path.write_text(json.dumps(record))
+    try:
+        page = write_results(root / "campaign.yml", root / "docs" / "value.md").read_text()
+    finally:
+        path.unlink()
+    section = page[page.index("## 6d.") :]
+    section = section[: section.index("\n## ", 4)]
+    cells = _row(section, "huri-s0 @ 0.0M")
+    assert cells[1:] == [
+        "huri",
+        "64",
+        "0.450 [0.40, 0.50]",
+        "0.570 [0.52, 0.61]",
+        "-0.120",
+        "-0.45",
+        "-0.06",
+        "12",
+    ]
+    assert "ppo-s0: `python benchmarks/value_baseline.py " in section and "--steps 1000`" in section
+
+
 def test_figures_are_drawn_small_and_linked(campaign) -> None:
     root, _ = campaign
     page = _page(root)

@@ -7,7 +7,10 @@ the results page's sections 6b, 6c and 10 fill in as entries finish (``defaults.
   readings of the forces on hands and feet and both hold times of a push, and on the nominal robot at the
   paper's magnitude (``analyses.force_magnitude``), for a Zerith-1 entry;
 - ``advantages``: how far its risk distortion moves the advantages of its own training rollouts from those
-  of a neutral and of a constant risk level (``analyses.advantages``), for a method with a quantile critic.
+  of a neutral and of a constant risk level (``analyses.advantages``), for a method with a quantile critic;
+- ``value_baseline``: how much of its training rollouts' returns the value its advantages use explains
+  (and, for a quantile critic, its atoms' mean), and its risk level before a fall
+  (``analyses.value_baseline``), for every agent.
 
 Each file is written after every case, so a measurement stopped by the wall time or a signal goes on where
 it stopped. The campaign measures an entry while its run holds the evaluated checkpoint (the newest model or
@@ -19,7 +22,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from sb3_huri.experiments.analyses import advantages, force_magnitude, risk_levels
+from sb3_huri.experiments.analyses import advantages, force_magnitude, risk_levels, value_baseline
 from sb3_huri.experiments.campaign.queue import CampaignEntry
 from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.huri.methods import METHODS
@@ -39,12 +42,14 @@ nominal robot at the paper's magnitude, the headline reading first."""
 def applies(name: str, entry: CampaignEntry) -> bool:
     """Whether the analysis ``name`` measures anything of the entry's agent: the risk levels of a method that
     reads the IQR band of a quantile critic, the advantages of a method with a quantile critic, the force
-    magnitude of a Zerith-1 agent."""
+    magnitude of a Zerith-1 agent, the value baseline of every agent."""
     preset = METHODS.get(entry.method)
     if name == "risk_levels":
         return preset is not None and preset.distributional and preset.use_iqr
     if name == "advantages":
         return preset is not None and preset.distributional
+    if name == "value_baseline":
+        return True
     return entry.env_id == ZERITH1_ID
 
 
@@ -83,6 +88,10 @@ def measure(entry: CampaignEntry, deadline: float | None = None) -> list[str]:
                 if deadline is None or time.time() < deadline:
                     advantages.measure_advantages(entry.run, steps=steps)
                 continue
+            if name == "value_baseline":
+                if deadline is None or time.time() < deadline:
+                    value_baseline.measure_value_baseline(entry.run, steps=steps)
+                continue
             for readings, cases, scales in FORCE_PLAN:
                 force_magnitude.measure_agent(
                     entry.run, steps, readings, cases=cases, scales=scales, episode_steps=limit,
@@ -99,6 +108,9 @@ def _complete(name: str, entry: CampaignEntry, steps: int) -> bool:
     """Whether the analysis's file of the checkpoint at ``steps`` holds every case it measures."""
     if name == "advantages":
         return advantages.measured_record(advantages.advantages_path(entry.run, steps)) is not None
+    if name == "value_baseline":
+        path = value_baseline.value_baseline_path(entry.run, steps)
+        return value_baseline.measured_record(path) is not None
     if name == "risk_levels":
         path = risk_levels.risk_levels_path(entry.run, steps)
         if not path.is_file():

@@ -52,7 +52,7 @@ learns per sample as the 32-robot one does), the paper's (train at its Table-5 r
 distribution), the paper's terrain training (its appendix A.7), and the paper's quadruped (its appendix
 A.6: `Go2Like-v0` on legged_gym's task, tested on Table 8's platforms). Entries pair and average only
 within a protocol."""
-ANALYSES = ("risk_levels", "force_magnitude", "advantages")
+ANALYSES = ("risk_levels", "force_magnitude", "advantages", "value_baseline")
 """What an entry can be measured on after its final evaluation (``campaign.analyses``)."""
 PROTOCOL_ENVS = {"quadruped": GO2LIKE_ID}
 """The env a protocol trains on where it is not ``ZERITH1_ID``."""

@@ -19,6 +19,8 @@
    (the campaign measures them after each final evaluation, ``benchmarks/risk_levels.py`` by hand);
 6c. how far each agent's risk distortion moves the advantages of its own training rollouts from those of a
    neutral and of a constant risk level (measured likewise, ``benchmarks/advantages.py`` by hand);
+6d. how much of its training rollouts' returns each agent's value explains (HuRi's ``V_beta`` and its
+   atoms' mean, PPO's ``V``) and its risk level before a fall (``benchmarks/value_baseline.py`` by hand);
 7. ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
    against HuRi and PPO at equal steps while they train, and its Table 8 analog with its pairs (and its
    methods side by side, as in section 2);
@@ -65,6 +67,7 @@ from sb3_huri.experiments.campaign.results.tables import (
     table1_section,
 )
 from sb3_huri.experiments.campaign.results.terrains import terrain_section
+from sb3_huri.experiments.campaign.results.value_baseline import value_baseline_section
 from sb3_huri.runner.files import write_text
 from zerith_gym import ZERITH1_ID
 
@@ -106,6 +109,7 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *risk_section(evaluations, figures, out),
         *risk_levels_section(every_entry),
         *advantages_section(every_entry),
+        *value_baseline_section(every_entry),
         *quadruped_section(quadruped, quadruped_evaluations, figures, out),
         *rollout_shape_section(entries, evaluations, figures, out),
         *terrain_section(evaluations),
