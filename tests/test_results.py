@@ -354,6 +354,11 @@ def test_the_value_baseline_section_shows_each_measured_agent_and_the_command_fo
         "12",
     ]
     assert "ppo-s0: `python benchmarks/value_baseline.py " in section and "--steps 1000`" in section
+    headline = page[page.index("## What the numbers show") : page.index("## 1.")]
+    assert (
+        "atoms' mean on 1 of 1 agents with a quantile critic (value minus atoms' mean -0.120 to -0.120"
+        in headline
+    )
 
 
 def test_figures_are_drawn_small_and_linked(campaign) -> None:

@@ -67,7 +67,10 @@ from sb3_huri.experiments.campaign.results.tables import (
     table1_section,
 )
 from sb3_huri.experiments.campaign.results.terrains import terrain_section
-from sb3_huri.experiments.campaign.results.value_baseline import value_baseline_section
+from sb3_huri.experiments.campaign.results.value_baseline import (
+    value_baseline_findings,
+    value_baseline_section,
+)
 from sb3_huri.runner.files import write_text
 from zerith_gym import ZERITH1_ID
 
@@ -97,7 +100,11 @@ def write_results(queue_path: Path, out: Path = Path("docs/results.md")) -> Path
         *findings_section(
             every_entry,
             evaluations,
-            [*side_by_side_findings(evaluations, SURVIVAL_CASES), *quadruped_findings(quadruped_evaluations)],
+            [
+                *side_by_side_findings(evaluations, SURVIVAL_CASES),
+                *quadruped_findings(quadruped_evaluations),
+                *value_baseline_findings(every_entry),
+            ],
         ),
         *status_section(every_entry, [*evaluations, *quadruped_evaluations], out),
         *table1_section(evaluations),

@@ -37,6 +37,38 @@ def _row(entry: CampaignEntry, steps: int, record: dict) -> str:
     return f"| {entry.name} @ {millions(steps)} | {entry.method} | " + " | ".join(cells) + " |"
 
 
+def _measured(entries: Sequence[CampaignEntry]) -> list[tuple[CampaignEntry, int, dict]]:
+    """The evaluated entries whose evaluated checkpoint's value is measured, with its steps and record."""
+    found = []
+    for entry in entries:
+        steps = evaluated_steps(entry)
+        record = None if steps is None else measured_record(value_baseline_path(entry.run, steps))
+        if record is not None:
+            found.append((entry, steps, record))
+    return found
+
+
+def value_baseline_findings(entries: Sequence[CampaignEntry]) -> list[str]:
+    """The headline's line: per robot, on how many of its measured quantile-critic agents the value the
+    advantages use explains less of the returns than the atoms' mean, and by how much."""
+    lines = []
+    for env_id in dict.fromkeys(entry.env_id for entry in entries):
+        gaps = [
+            record["explained_variance"]["value"] - record["explained_variance"]["atom_mean"]
+            for entry, _, record in _measured(entries)
+            if entry.env_id == env_id and "atom_mean" in record["explained_variance"]
+        ]
+        if gaps:
+            below = sum(gap < 0 for gap in gaps)
+            lines.append(
+                f"- {env_id}: the distorted value `V_beta` explains less of the agent's training returns "
+                f"than its own atoms' mean on {below} of {len(gaps)} agents with a quantile critic "
+                f"(value minus atoms' mean {min(gaps):+.3f} to {max(gaps):+.3f}, section 6d): "
+                "one checkpoint each."
+            )
+    return lines
+
+
 def value_baseline_section(entries: Sequence[CampaignEntry]) -> list[str]:
     """Section 6d: a row per evaluated agent and its measures; the agents not measured yet, with the
     command."""
@@ -58,16 +90,14 @@ def value_baseline_section(entries: Sequence[CampaignEntry]) -> list[str]:
         "methods.",
         "",
     ]
-    rows, missing = [], []
-    for entry in entries:
-        steps = evaluated_steps(entry)
-        if steps is None:
-            continue
-        record = measured_record(value_baseline_path(entry.run, steps))
-        if record is None:
-            missing.append(f"{entry.name}: {measure_command(entry, SCRIPT)}")
-            continue
-        rows.append(_row(entry, steps, record))
+    measured = _measured(entries)
+    rows = [_row(entry, steps, record) for entry, steps, record in measured]
+    done = {entry.name for entry, _, _ in measured}
+    missing = [
+        f"{entry.name}: {measure_command(entry, SCRIPT)}"
+        for entry in entries
+        if evaluated_steps(entry) is not None and entry.name not in done
+    ]
     if rows:
         lines += [
             "| agent | method | states | explained by its value (V_beta; PPO: V) [rollouts] | explained by "
