@@ -3,8 +3,9 @@
 # GPU machine"), in one call of under 10 minutes: install the carried wheels (.whl/, from
 # benchmarks/device_wheels.sh) where the interpreter lacks them, train the entry for MINUTES of wall time
 # (it stops at a checkpoint and says so), then pack the entry's run folder, without its checkpoints/
-# folder, as $OUT/run.tar beside the training log. The run folder has one writer at a time: stop the entry
-# here before the call, and unpack the tar here before the campaign starts again.
+# folder, previous checkpoint (.previous/), lock and failure note, as $OUT/run.tar beside the training log.
+# The run folder has one writer at a time: stop the entry here before the call, and unpack the tar here
+# before the campaign starts again.
 #
 #   bash benchmarks/device_campaign_chunk.sh ENTRY [MINUTES]   # there, from the repository root (default 8)
 #   tar -xf <the call's files>/run.tar                         # here, from the repository root
@@ -44,7 +45,7 @@ EOF
 "$python" -m sb3_huri.experiments campaign --queue "$queue" --entry "$entry" --max-wall-minutes "$minutes" \
     > "$out/train.log" 2>&1
 status=$?
-tar -cf "$out/run.tar" --exclude=checkpoints "$run" || exit 3
+tar -cf "$out/run.tar" --exclude=checkpoints --exclude=.previous --exclude=.lock --exclude=.failure.json "$run" || exit 3
 tail -n 5 "$out/train.log"
 # The entry's row of the status table: its steps now and its state (train: stopped at the wall-time limit,
 # to go on from its checkpoint; done: trained and evaluated). The training's exit status is 0 only for done.

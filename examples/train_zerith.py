@@ -41,6 +41,7 @@ from typing import Any
 import yaml
 
 from sb3_huri.huri.methods import DEFAULT_METHOD
+from sb3_huri.runner.files import RunError
 from sb3_huri.runner.folder import next_run_folder
 from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import METHODS, read_preset
@@ -162,7 +163,7 @@ def main() -> None:
             threads=args.threads, tensorboard_log=args.tensorboard_log,
         )  # fmt: skip
         train_run(request, options)
-    except ValueError as error:
+    except (ValueError, RunError) as error:  # a bad request; a run folder another trainer holds, or damaged
         parser.error(str(error))
 
 

@@ -1,5 +1,6 @@
 """Helpers shared by the tests: a Pendulum with an asymmetric observation, a logger writer that keeps every
-value, an exact comparison of state dicts, and a tiny version of the robust recipe's preset."""
+value, an exact comparison of state dicts, a tiny version of the robust recipe's preset, and a program that
+holds a run folder."""
 
 from pathlib import Path
 
@@ -11,6 +12,10 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import KVWriter
 
 ROOT = Path(__file__).resolve().parent.parent
+
+HOLD_RUN = "import sys\nfrom sb3_huri.runner.lock import hold_run\nwith hold_run(sys.argv[1]):\n"
+HOLD_RUN += "    print('held', flush=True)\n    sys.stdin.read()\n"
+"""A program that holds the run folder it is given (``sb3_huri.runner.lock``) until its input ends."""
 
 SMALL = dict(n_steps=32, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
 

@@ -4,22 +4,27 @@ the whole queue trained by `python -m sb3_huri.experiments campaign`
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 import yaml
-from huri_helpers import ROOT, state_dicts_equal, tiny_robust_preset
+from huri_helpers import HOLD_RUN, ROOT, state_dicts_equal, tiny_robust_preset
 
 from sb3_huri import HuRiPPO
 from sb3_huri.experiments.campaign.final_evaluation import QUADRUPED_CASES
 from sb3_huri.experiments.campaign.queue import load_queue
 from sb3_huri.experiments.campaign.scheduler import _reread, campaign_lock, run_entry, runnable, status_table
 from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.curve import read_curve
 from sb3_huri.runner.robustness import CASES, read_rows
 from sb3_huri.runner.state import RunState
 from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
@@ -55,6 +60,9 @@ def test_the_projects_queue_is_valid_and_names_its_entries_once():
         ({"protocol": "lab"}, "protocol 'lab' is not one of robust, robust-256, paper, terrain"),
         ({"method": "sac"}, "unknown method 'sac'"),
         ({"conf": "missing.yml"}, "missing.yml not found"),
+        ({"conf": "../x.yml"}, "campaign.yml: entry a: conf: preset file ../x.yml not found"),
+        ({"steps": "many"}, "campaign.yml: entry a: steps: seed and steps must be numbers, got 'many'"),
+        ({"method": "sac"}, "campaign.yml: entry a: method: unknown method 'sac'"),
         ({"steps": "many"}, "seed and steps must be numbers"),
         ({"budget": 3}, "unknown budget"),
         ({"hyperparams": [256]}, "hyperparams must map preset names to values"),
@@ -280,3 +288,190 @@ def test_a_quadruped_entry_trains_go2like_and_is_evaluated_on_its_own_cases(tmp_
     assert all(len(case["survived"]) == 2 for case in record["cases"].values())
     args = yaml.safe_load((run / "Go2Like-v0" / "args.yml").read_text())
     assert args["env"] == "Go2Like-v0" and args["env_kwargs"]["scenario"] == "quadruped-train"
+
+
+def test_a_full_disk_stops_its_entry_at_once_saying_so_and_keeps_its_last_good_checkpoint(
+    tmp_path, monkeypatch
+):
+    """A checkpoint whose write fails for want of space: its temporary file is removed, the checkpoint
+    before it stays the newest (whole and agreeing with itself), the campaign prints the file and the error
+    in one line, does not start the entry a second time, and `--status` says why; once there is room, the
+    next campaign resumes from that checkpoint."""
+    import torch as th
+
+    from sb3_huri.experiments.campaign import child, scheduler
+    from sb3_huri.runner.folder import load_run
+
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("f-huri", "f/Zerith1-v0_1", 192)], robustness_every=10**9,
+                   eval_episodes=1, episode_steps=5)  # fmt: skip
+    (entry,) = load_queue(queue)
+    monkeypatch.setattr(scheduler, "CHECKPOINT_FREQ", 64)
+    save, random_states = th.save, []
+
+    def full_disk(obj: object, file: object, *args: object, **kwargs: object) -> None:
+        if str(file).endswith(".tmp.pt"):  # rng.pt, written after the model and normalizer
+            random_states.append(file)
+            if len(random_states) == 2:  # the second checkpoint, at 128 steps
+                Path(file).write_bytes(b"half a file")
+                raise OSError(errno.ENOSPC, "No space left on device")
+        return save(obj, file, *args, **kwargs)
+
+    monkeypatch.setattr(th, "save", full_disk)
+    assert child.run_child(entry) == child.EXIT_LEFT
+    run = entry.run
+    assert RunState.read(run).timesteps == 64 == HuRiPPO.load(run / "Zerith1-v0.zip").num_timesteps
+    assert load_run(run, "Zerith1-v0")[1] is not None  # its normalizer loads too
+    assert not [path for path in run.rglob("*") if ".tmp" in path.name]
+    said, failures = [], {}
+    scheduler._report_end(entry, child.EXIT_LEFT, False, failures, said.append, os.getpid())
+    assert f"f-huri: {run / 'Zerith1-v0' / 'rng.pt'}: [Errno 28] No space left on device" in said, said
+    assert said[-1].startswith("f-huri ended unfinished (2 of 2): left alone: a second start would fail")
+    assert runnable([entry], set(), set(failures)) == []
+    note = status_table(queue).splitlines()[-1]
+    assert note.startswith("f-huri: failed ") and note.endswith("rng.pt: [Errno 28] No space left on device")
+    monkeypatch.setattr(th, "save", save)  # room again
+    assert child.run_child(entry) == 0 and entry.state() == "done"
+    assert [s["from_timesteps"] for s in RunState.read(run).sessions] == [0, 64]
+    assert not (run / child.FAILURE_FILE).exists()
+
+
+def test_an_entry_whose_run_does_not_read_is_left_alone_and_the_others_go_on(tmp_path):
+    """Garbage in one entry's state.json: the queue reads, the entry is `damaged` (its trainer would fall
+    back to a previous checkpoint; it has none), its child fails at once saying which file, and only that
+    entry is left alone."""
+    from sb3_huri.experiments.campaign.child import EXIT_LEFT, run_child
+    from sb3_huri.experiments.campaign.scheduler import TRIES, _report_end
+
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("bad", "bad", 64), _entry("good", "good", 64)])
+    (tmp_path / "bad" / "Zerith1-v0").mkdir(parents=True)
+    (tmp_path / "bad" / "Zerith1-v0" / "state.json").write_text("\x00 not a state")
+    entries = load_queue(queue)
+    assert [entry.state() for entry in entries] == ["damaged", "new"]
+    assert "state.json is corrupt" in entries[0].problem()
+    assert [entry.name for entry in runnable(entries, set(), set())] == ["bad", "good"]
+    table = status_table(queue).splitlines()
+    assert table[1].endswith(" damaged") and table[-1].startswith("bad: ") and "state.json" in table[-1]
+    assert run_child(entries[0]) == EXIT_LEFT
+    said, failures = [], {}
+    _report_end(entries[0], EXIT_LEFT, False, failures, said.append, os.getpid())
+    assert any(line.startswith("bad: ") and "state.json is corrupt" in line for line in said), said
+    assert failures == {"bad": TRIES} and "left alone" in said[-1]
+    assert [entry.name for entry in runnable(entries, set(), set(failures))] == ["good"]
+
+
+def test_an_entry_whose_run_folder_another_process_holds_waits_until_it_is_free(tmp_path, monkeypatch):
+    """A campaign started while a trainer of the last one still stops (or another trainer runs the folder):
+    the entry is not started beside it, the campaign says once whom it waits for, and starts the entry when
+    the folder is free; a child refused the folder did not fail."""
+    from sb3_huri.experiments.campaign import scheduler
+    from sb3_huri.experiments.campaign.child import EXIT_BUSY
+
+    tiny_robust_preset(tmp_path)
+    entries = load_queue(_queue(tmp_path, [_entry("a", "a/Zerith1-v0_1", 64)]))
+    run = entries[0].run
+    holding = subprocess.Popen(
+        [sys.executable, "-c", HOLD_RUN, str(run)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    monkeypatch.setattr(scheduler, "_child", lambda entry, *_: f"child of {entry.name}")
+    running, said, where = {}, [], (tmp_path / "campaign.yml", 1, [0], None)
+    try:
+        assert holding.stdout.readline() == "held\n"
+        held = scheduler._start(entries, running, set(), {}, where, said.append)
+        assert held == {run: holding.pid} and not running
+        assert said[0].endswith(f"a waits: another process (pid {holding.pid}) holds its run folder {run}")
+        assert scheduler._start(entries, running, set(), held, where, said.append) == held and len(said) == 1
+    finally:
+        holding.kill()
+        holding.wait()
+    assert scheduler._start(entries, running, set(), held, where, said.append) == {}
+    assert running == {0: (entries[0], "child of a")} and said[-1].endswith("started a on slot 0")
+    failures, said = {}, []
+    scheduler._report_end(entries[0], EXIT_BUSY, False, failures, said.append)
+    assert not failures and "started once it is free" in said[-1]
+
+
+def _children(pid: int) -> list[int]:
+    return [int(child) for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+
+def _alive(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie has ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _kill_the_campaign_alone(tmp_path: Path) -> tuple[list[str], Path]:
+    """Start a campaign of one long entry, wait for its first checkpoint, `kill -9` the campaign's own
+    process (as an out-of-memory kill would) and wait for its trainer to end; the campaign's command and
+    the entry's run folder."""
+    tiny_robust_preset(tmp_path)
+    queue = _queue(tmp_path, [_entry("long", "long/Zerith1-v0_1", 10**6)], robustness_every=64,
+                   robustness_episodes=1, episode_steps=5)  # fmt: skip
+    run = tmp_path / "long" / "Zerith1-v0_1"
+    command = [
+        sys.executable,
+        "-m",
+        "sb3_huri.experiments",
+        "campaign",
+        "--queue",
+        str(queue),
+        "--slots",
+        "1",
+    ]
+    with (tmp_path / "first.log").open("w") as log:
+        first = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while RunState.read(run).timesteps < 64:
+            assert first.poll() is None and time.monotonic() < deadline, (run / "train.log").read_text()[
+                -3000:
+            ]
+            time.sleep(0.5)
+        trainers = _children(first.pid)
+        first.kill()
+        first.wait()
+        while any(_alive(pid) for pid in trainers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert trainers and not any(_alive(pid) for pid in trainers), "a trainer outlived its campaign"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(first.pid, signal.SIGKILL)
+    return command, run
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the processes from /proc")
+def test_a_campaign_killed_alone_takes_its_trainers_with_it(tmp_path):
+    """`kill -9` of the campaign's own process: its trainer (told by the OS) checkpoints and ends instead of
+    training on beside the next campaign; it leaves its run folder free and a whole checkpoint."""
+    from sb3_huri.runner.lock import holder
+
+    _, run = _kill_the_campaign_alone(tmp_path)
+    assert holder(run) is None
+    state = RunState.read(run)
+    assert state.timesteps >= 64 and HuRiPPO.load(run / "Zerith1-v0.zip").num_timesteps == state.timesteps
+    assert "checkpoint:" in (run / "train.log").read_text().rsplit("== ", 1)[-1]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the processes from /proc")
+def test_a_campaign_started_after_one_killed_alone_resumes_its_runs_as_their_one_writer(tmp_path):
+    """The above, then the next campaign: it resumes the run from the checkpoint the trainer left, and the
+    run's curve and state are those of one writer (steps increasing strictly, the state that of the newest
+    model)."""
+    command, run = _kill_the_campaign_alone(tmp_path)
+    stopped_at = RunState.read(run).timesteps
+    again = subprocess.run(
+        [*command, "--max-wall-minutes", "0.05"], capture_output=True, text=True, timeout=300
+    )
+    assert "started long" in again.stdout, again.stdout + (run / "train.log").read_text()[-3000:]
+    state = RunState.read(run)
+    assert (
+        state.timesteps > stopped_at and HuRiPPO.load(run / "Zerith1-v0.zip").num_timesteps == state.timesteps
+    )
+    steps = [row["timesteps"] for row in read_curve(run)]
+    assert steps == sorted(set(steps)) and steps[-1] >= state.timesteps  # increasing strictly: one writer
+    assert [s["from_timesteps"] for s in state.sessions] == [0, stopped_at]

@@ -4,9 +4,12 @@ by `examples/train_zerith.py --resume` (sb3_huri.runner)."""
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import math
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -17,7 +20,7 @@ import numpy as np
 import pytest
 import torch as th
 import yaml
-from huri_helpers import tiny_robust_preset
+from huri_helpers import HOLD_RUN, tiny_robust_preset
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import VecNormalize
 
@@ -27,7 +30,11 @@ from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.runner.build import resume_overrides
 from sb3_huri.runner.checkpoint import RunCheckpoint
 from sb3_huri.runner.curve import CURVE_COLUMNS, append_row, read_curve, trim_curve
+from sb3_huri.runner.fallback import damage, model_steps, previous_folder, recover
+from sb3_huri.runner.files import RunError
+from sb3_huri.runner.lock import RunBusy, hold_run, holder
 from sb3_huri.runner.state import RunState, restore_random_states, start_on_levels, terrain_levels
+from sb3_huri.runner.training import RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import read_preset
 from zerith_gym.sb3.callbacks import RandomizationCurriculum
 from zerith_gym.terrain_levels import LevelRule
@@ -288,3 +295,138 @@ def test_hardware_names_the_processor_once(monkeypatch):
     monkeypatch.setattr(platform, "machine", lambda: "arm64")
     monkeypatch.setattr(platform, "processor", lambda: "arm")
     assert state.hardware().startswith("arm64 arm 16 cores, ")
+
+
+def test_a_second_trainer_of_a_held_run_folder_is_refused_naming_the_holder(tmp_path):
+    """One writer per run folder: while another process holds it, `train_run` is refused before it writes
+    anything; the lock goes with its holder, however it dies (here a SIGKILL)."""
+    preset = read_preset("Zerith1-v0", tiny_robust_preset(tmp_path))
+    run = tmp_path / "run"
+    holding = subprocess.Popen(
+        [sys.executable, "-c", HOLD_RUN, str(run)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holding.stdout.readline() == "held\n"
+        assert holder(run) == holding.pid
+        refused = re.escape(f"{run} is held by another process (pid {holding.pid}")
+        with pytest.raises(RunBusy, match=refused):
+            train_run(RunRequest(run, preset, "huri", 0, until=64), TrainingOptions(workers=0, verbose=0))
+        assert [path.name for path in run.iterdir()] == [".lock"]  # nothing of a run written
+    finally:
+        holding.kill()
+        holding.wait()
+    assert holder(run) is None
+    with hold_run(run), hold_run(run):  # free again; nested in one process
+        assert holder(run) == os.getpid()
+    assert holder(run) is None
+
+
+def _alive(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie has ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+CHILD = "import sys, time\nfrom sb3_huri.runner.lock import die_with_parent\n"
+CHILD += "die_with_parent(int(sys.argv[1]))\nprint('watching', flush=True)\ntime.sleep(300)\n"
+PARENT = "import os, subprocess, sys\n"
+PARENT += "child = subprocess.Popen([sys.executable, '-c', sys.argv[1], str(os.getpid())])\n"
+PARENT += "print(child.pid, flush=True)\nchild.wait()\n"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the processes from /proc")
+def test_a_process_told_to_die_with_its_parent_ends_when_the_parent_is_killed():
+    """A parent killed while its child watches it (the OS's parent-death signal), and one killed before the
+    child could watch it (the child finds it gone): either way the child ends."""
+    parents = [
+        subprocess.Popen([sys.executable, "-c", PARENT, CHILD], stdout=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
+    children = [int(parent.stdout.readline()) for parent in parents]
+    parents[0].kill()  # before its child has even imported the module
+    assert parents[1].stdout.readline() == "watching\n"
+    parents[1].kill()
+    for parent in parents:
+        parent.wait()
+    deadline = time.monotonic() + 60
+    while any(_alive(pid) for pid in children) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(_alive(pid) for pid in children)
+
+
+def _cut(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+DAMAGES = {
+    "a torn model": lambda run: _cut(run / "Zerith1-v0.zip"),
+    "a state that is no JSON": lambda run: (run / "Zerith1-v0" / "state.json").write_text("{garbage"),
+    "a normalizer that does not unpickle": lambda run: (run / "Zerith1-v0" / "vecnormalize.pkl").write_bytes(
+        b"\x80\x04garbage"
+    ),
+    "a kill between the model and the state": lambda run: shutil.copyfile(
+        previous_folder(run) / "Zerith1-v0" / "state.json", run / "Zerith1-v0" / "state.json"
+    ),
+}
+
+
+@pytest.mark.filterwarnings("ignore::sb3_huri.UnnormalizedRewardWarning")
+def test_a_damaged_newest_checkpoint_is_set_aside_and_the_run_resumes_from_the_previous_one(tmp_path):
+    """The checkpoint before the newest is kept in <run>/.previous/; a newest one that does not load
+    or does not agree with itself is moved aside (not deleted), the previous one takes its place, and the
+    lost steps are named. A run without a previous checkpoint (one from before it was kept) says so."""
+    preset = read_preset("Zerith1-v0", tiny_robust_preset(tmp_path))
+    trained = tmp_path / "trained"
+    options = TrainingOptions(checkpoint_freq=64, workers=0, verbose=0)
+    assert train_run(RunRequest(trained, preset, "huri", 0, until=192), options) == 192
+    assert RunState.read(previous_folder(trained)).timesteps == 128
+    for kind, spoil in DAMAGES.items():
+        run = tmp_path / kind.replace(" ", "-")
+        shutil.copytree(trained, run)
+        spoil(run)
+        said = []
+        recover(run, echo=said.append)
+        assert damage(run) is None, kind
+        assert RunState.read(run).timesteps == 128 == model_steps(run / "Zerith1-v0.zip"), kind
+        assert "steps 128 to 192 are lost" in said[0], (kind, said)
+        (aside,) = (run / "checkpoints").glob("damaged-*")
+        assert (aside / "Zerith1-v0.zip").is_file() and str(aside) in said[0]
+    run = tmp_path / "a-torn-model"
+    assert train_run(RunRequest(run, preset, "huri", 0, until=256), options) == 256
+    assert HuRiPPO.load(run / "Zerith1-v0.zip").num_timesteps == 256 == RunState.read(run).timesteps
+    assert [row["timesteps"] for row in read_curve(run)] == [64, 128, 192, 256]  # the lost rows redone once
+    assert [s["from_timesteps"] for s in RunState.read(run).sessions] == [0, 128]
+
+    shutil.rmtree(previous_folder(trained))  # as in a run folder from before it was kept
+    state = RunState.read(trained)
+    state.timesteps = 128
+    state.write(trained)
+    recover(trained)  # it loads, but disagrees: resumed as it is, as before (the trainer warns)
+    assert damage(trained) == ("its model holds 192 steps and its state.json 128 (a save cut short)", False)
+    _cut(trained / "Zerith1-v0.zip")
+    with pytest.raises(RunError, match=r"does not load .* no good previous checkpoint"):
+        recover(trained)
+    assert (trained / "Zerith1-v0.zip").is_file()  # left where it was
+
+
+def test_a_curve_that_does_not_read_is_a_clear_error_and_a_failed_append_leaves_it_whole(tmp_path):
+    row = {**dict.fromkeys(CURVE_COLUMNS, float("nan")), "timesteps": 64, "wall_s": 6.4}
+    append_row(tmp_path, row)
+    before = (tmp_path / "curve.csv").read_bytes()
+    write = os.write
+
+    def full_disk(descriptor: int, data: bytes) -> int:
+        write(descriptor, data[:7])  # part of the row, then no more room
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "write", full_disk)
+        with pytest.raises(OSError, match="No space left on device") as failed:
+            append_row(tmp_path, {**row, "timesteps": 128})
+    assert failed.value.filename == str(tmp_path / "curve.csv")
+    assert (tmp_path / "curve.csv").read_bytes() == before
+    (tmp_path / "curve.csv").write_bytes(b"timesteps\n\xff\xfe\x00\x81")
+    with pytest.raises(RunError, match=r"curve\.csv is corrupt"):
+        read_curve(tmp_path)

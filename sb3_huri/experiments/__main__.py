@@ -12,7 +12,9 @@
 env) and evaluates each under the paper's protocol; stopped at any point, the same command continues every
 unfinished run from its last checkpoint and skips the finished ones. ``--backend ray`` runs the same runs as
 Ray tasks on the cluster of ``RAY_ADDRESS`` (or ``--ray-address``), with the output folder shared by its
-machines. ``report`` writes ``DIR/report.md`` with the tables, figures and the paper's numbers.
+machines. ``report`` writes ``DIR/report.md`` with the tables, figures and the paper's numbers. A standard
+Gymnasium task (``--env Walker2d-v5``) trains its preset as RL Zoo does and is evaluated on its return; its
+``report`` (of a task's folder, or a folder of them) gives means, IQMs and the probability of beating PPO.
 
 ``campaign`` trains the long runs of the queue ``runs/campaign.yml`` in the background, stretch after stretch,
 resumable (``sb3_huri.experiments.campaign.scheduler``); ``results`` writes ``docs/results.md`` and its
@@ -41,7 +43,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     commands = parser.add_subparsers(dest="command", required=True)
     run = commands.add_parser("run", help="train and evaluate a grid of methods x seeds (resumable)")
-    run.add_argument("--env", default="Zerith1-v0", help="env id (a Zerith env; default Zerith1-v0)")
+    run.add_argument(
+        "--env", default="Zerith1-v0", help="env id: a Zerith env (default Zerith1-v0) or a standard task"
+    )
     run.add_argument(
         "--methods", nargs="+", default=list(METHODS), help=f"methods (default: all): {', '.join(METHODS)}"
     )
@@ -67,7 +71,7 @@ def _parser() -> argparse.ArgumentParser:
         "--checkpoint-freq", type=int, default=50_000, help="env steps between checkpoints (default 50000)"
     )
     report = commands.add_parser("report", help="write DIR/report.md and the figures")
-    report.add_argument("out", type=Path, help="experiment folder")
+    report.add_argument("out", type=Path, help="experiment folder (or a folder of standard tasks' ones)")
     campaign = commands.add_parser("campaign", help="train the campaign's queue (resumable), or --status")
     campaign.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
     campaign.add_argument("--slots", type=int, default=None, help="entries at once (default: one per core)")
@@ -76,6 +80,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     campaign.add_argument("--status", action="store_true", help="print where every entry stands, and exit")
     campaign.add_argument("--entry", default=None, help="train and evaluate this one entry in this process")
+    campaign.add_argument(
+        "--parent",
+        type=int,
+        default=None,
+        help="with --entry: stop, with a checkpoint, when process PARENT ends",
+    )
     results = commands.add_parser("results", help="write docs/results.md and its figures from the runs")
     results.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
     results.add_argument("--out", type=Path, default=Path("docs/results.md"), help="the page to write")
@@ -84,8 +94,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def _campaign(args: argparse.Namespace) -> int:
     """The ``campaign`` command: status, one entry, or the whole queue; 0 when nothing is left to do."""
+    from sb3_huri.experiments.campaign.child import run_child
     from sb3_huri.experiments.campaign.queue import load_queue
-    from sb3_huri.experiments.campaign.scheduler import run_campaign, run_entry, status_table
+    from sb3_huri.experiments.campaign.scheduler import run_campaign, status_table
 
     max_wall_s = None if args.max_wall_minutes is None else 60.0 * args.max_wall_minutes
     if args.status:
@@ -95,7 +106,7 @@ def _campaign(args: argparse.Namespace) -> int:
         entries = {entry.name: entry for entry in load_queue(args.queue)}
         if args.entry not in entries:
             raise ExperimentError(f"no entry {args.entry!r} in {args.queue}; entries: {', '.join(entries)}")
-        return 0 if run_entry(entries[args.entry], max_wall_s) == "done" else 1
+        return run_child(entries[args.entry], max_wall_s, args.parent)
     unfinished = run_campaign(args.queue, args.slots, max_wall_s)
     print(f"{len(unfinished)} entries unfinished" if unfinished else "every entry is done")
     return 1 if unfinished else 0

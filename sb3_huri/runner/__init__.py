@@ -10,7 +10,9 @@ spanning many sessions needs beside it::
     <run>/curve.csv                           a row per rollout
     <run>/robustness.csv                      Table-1 survival every few million steps
     <run>/checkpoints/rl_model_<steps>_steps.zip, rl_model_vecnormalize_<steps>_steps.pkl   kept copies
+    <run>/.previous/                          the checkpoint before the newest, to fall back to
     <run>/evaluations/<steps>.json            the evaluation record of a checkpoint
+    <run>/.lock                               held by the one process writing the folder (its pid)
 
 Its modules, each with one job:
 
@@ -20,6 +22,8 @@ Its modules, each with one job:
 - ``checkpoint``: ``RunCheckpoint``, the callback that checkpoints between rollouts and stops cleanly;
 - ``state``: ``state.json`` and ``rng.pt``; ``curve``: ``curve.csv``; ``folder``: the folder's model files,
   saved and loaded; ``files``: writes a kill cannot tear, and ``RunError``;
+- ``lock``: one writer per run folder, and trainers that end with the process that started them;
+  ``fallback``: the previous checkpoint kept beside the newest, and the fall back to it;
 - ``evaluation``: the paper's protocol on a trained agent; ``robustness``: ``robustness.csv``;
   ``record``: a checkpoint's evaluation record.
 """

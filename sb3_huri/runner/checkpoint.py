@@ -8,17 +8,23 @@ states, curriculum stage and terrain levels (``start_on_levels``); its robots ar
 seed and step count, so resuming from a checkpoint is reproducible, though not the same draws as a run that
 was never interrupted. Its episodes start afresh: an episode cut by the checkpoint moves no level, and a
 robot whose episode ended in the checkpoint's very step goes on from the level it walked on.
+
+Each checkpoint first keeps the one it replaces in ``<run>/.previous/`` (``sb3_huri.runner.fallback``):
+a save that fails (a full disk) puts it back and raises, so the newest checkpoint is always a whole one,
+and a newest one found damaged later is replaced by it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
-import shutil
 import time
 from pathlib import Path
 from typing import Any
 
 from sb3_huri.runner.curve import CurveWriter
+from sb3_huri.runner.fallback import keep_previous, restore_previous, set_aside
+from sb3_huri.runner.files import link_or_copy
 from sb3_huri.runner.folder import CHECKPOINTS, save_run
 from sb3_huri.runner.robustness import add_row, robustness_row
 from sb3_huri.runner.state import RunState, hardware, save_random_states, terrain_levels
@@ -125,14 +131,14 @@ class RunCheckpoint(CurveWriter):
             self.add_robustness_row()
 
     def keep_copy(self) -> None:
-        """Copy the newest checkpoint's model and normalizer into ``checkpoints/`` under its steps."""
+        """Keep the newest checkpoint's model and normalizer in ``checkpoints/`` under its steps (a second
+        name for each file, written whole: a failure leaves no torn copy)."""
         kept = self.run / CHECKPOINTS
-        kept.mkdir(exist_ok=True)
         steps = self.saved_steps
-        shutil.copyfile(self.run / f"{self.env_id}.zip", kept / f"rl_model_{steps}_steps.zip")
+        link_or_copy(self.run / f"{self.env_id}.zip", kept / f"rl_model_{steps}_steps.zip")
         normalizer = self.run / self.env_id / "vecnormalize.pkl"
         if normalizer.is_file():
-            shutil.copyfile(normalizer, kept / f"rl_model_vecnormalize_{steps}_steps.pkl")
+            link_or_copy(normalizer, kept / f"rl_model_vecnormalize_{steps}_steps.pkl")
 
     def add_robustness_row(self) -> None:
         """Evaluate the model as it is now (the newest checkpoint) into the run's ``robustness.csv``."""
@@ -151,7 +157,20 @@ class RunCheckpoint(CurveWriter):
             print(f"robustness at {self.saved_steps} steps: Table-1 mean {row['table1_mean']}", flush=True)
 
     def save(self) -> None:
-        """Model, normalizer, preset, arguments, state and random states, replacing the previous ones."""
+        """Model, normalizer, preset, arguments, state and random states, replacing the previous ones, which
+        are kept in ``<run>/.previous/``. A save that fails puts them back (an unfinished first one
+        is set aside), then raises: the newest checkpoint is always a complete one."""
+        kept = keep_previous(self.run, self.env_id)
+        try:
+            self._write()
+        except BaseException:
+            with contextlib.suppress(OSError):
+                if not restore_previous(self.run, self.env_id) and not kept:
+                    set_aside(self.run, self.env_id, "unfinished")
+            raise
+
+    def _write(self) -> None:
+        """Write the checkpoint's files, ``state.json`` last."""
         wall = self.wall_s
         stepped = self.num_timesteps > self._session.get("from_timesteps", self.num_timesteps)
         save_run(self.model, self.run, self.preset, self.run_args, self.env_id)

@@ -13,11 +13,13 @@ band, the band's thresholds, the mean risk level (Wang's ``beta``) and its RND p
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import io
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +27,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_huri.runner.files import replaced
+from sb3_huri.runner.files import RunError, naming, replaced
 from sb3_huri.runner.state import terrain_levels
 from zerith_gym.infos import ended_falls
 
@@ -56,20 +58,52 @@ def _cell(value: object) -> object:
 
 def append_row(folder: str | os.PathLike, row: Mapping[str, object]) -> None:
     """Append one rollout's row (keys: ``CURVE_COLUMNS``) to the curve of ``folder`` (the header first; a
-    curve written with fewer columns gets today's header first, its rows blank in the new columns)."""
+    curve written with fewer columns gets today's header first, its rows blank in the new columns). A write
+    that fails (a full disk) is cut back off the file, which keeps its rows whole, and its OSError names
+    the file; RunError for a curve that does not read."""
     path = Path(folder) / CURVE_FILE
     new = not path.is_file()
     path.parent.mkdir(parents=True, exist_ok=True)
     if not new:
-        with path.open(newline="") as file:
+        with _reading(path), path.open(newline="") as file:
             header = next(csv.reader(file), [])
         if header != list(CURVE_COLUMNS):
             _rewrite(path, _rows(path))
-    with path.open("a", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=CURVE_COLUMNS)
-        if new:
-            writer.writeheader()
-        writer.writerow({key: _cell(value) for key, value in row.items()})
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=CURVE_COLUMNS)
+    if new:
+        writer.writeheader()
+    writer.writerow({key: _cell(value) for key, value in row.items()})
+    _append(path, text.getvalue().encode())
+
+
+def _append(path: Path, data: bytes) -> None:
+    """`data` at the end of the file at `path` in one write; on a failure (or a short write: a full disk)
+    the file is cut back to its former end, and the OSError names it."""
+    descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        end = os.fstat(descriptor).st_size
+        try:
+            if os.write(descriptor, data) < len(data):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        except OSError as error:
+            with contextlib.suppress(OSError):
+                os.ftruncate(descriptor, end)
+            raise naming(error, path) from error
+    finally:
+        os.close(descriptor)
+
+
+@contextlib.contextmanager
+def _reading(path: Path) -> Iterator[None]:
+    """Reading the curve at `path`: RunError naming it if its bytes are not a CSV file's."""
+    try:
+        yield
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise RunError(
+            f"{path} is corrupt ({error}); it should hold a run's learning curve (move it aside to go on "
+            "without its rows)"
+        ) from error
 
 
 def read_curve(folder: str | os.PathLike) -> list[dict[str, float]]:
@@ -79,7 +113,7 @@ def read_curve(folder: str | os.PathLike) -> list[dict[str, float]]:
     if not path.is_file():
         return []
     rows = []
-    with path.open(newline="") as file:
+    with _reading(path), path.open(newline="") as file:
         for row in csv.DictReader(file):
             try:
                 values = {
@@ -131,7 +165,7 @@ def trim_curve(folder: str | os.PathLike, steps: int) -> None:
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="") as file:
+    with _reading(path), path.open(newline="") as file:
         return list(csv.DictReader(file))
 
 

@@ -3,7 +3,9 @@
 ``replaced(path)`` gives a temporary path beside `path` to write to by any means (``model.save``,
 ``th.save``, ``np.savez`` on an open file); when the block ends without an error the temporary file is
 flushed to disk and renamed onto `path` (``os.replace``: atomic on POSIX and Windows), and on an error it is
-removed. A kill at any moment leaves the old file or the new one, never half of one.
+removed before anything else is done (a full disk gets its space back at once), and the error, an OSError,
+names `path`. A kill at any moment leaves the old file or the new one, never half of one. ``link_or_copy``
+puts a second name on a file (a hard link: no copy, no space) the same way.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import contextlib
 import functools
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +29,8 @@ class RunError(Exception):
 @contextlib.contextmanager
 def replaced(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path in `path`'s folder (created, with the suffix of `path`) that replaces `path` when
-    the block ends without an error; removed otherwise."""
+    the block ends without an error; removed otherwise, first of all, and an OSError re-raised naming
+    `path` (the file that could not be written, not its temporary name)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}")
@@ -38,10 +42,46 @@ def replaced(path: str | os.PathLike) -> Iterator[Path]:
         with open(temporary, "rb+") as written:  # on disk before the rename, so a crash keeps one whole file
             os.fsync(written.fileno())
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as error:
         with contextlib.suppress(OSError):
             os.unlink(temporary)
+        if isinstance(error, OSError):
+            raise naming(error, path) from error
         raise
+
+
+def naming(error: OSError, path: str | os.PathLike) -> OSError:
+    """`error` naming `path` as its file (an error of a write to an open file names none), of the same kind
+    (``OSError(errno, ...)`` gives ``FileNotFoundError``, ``PermissionError``, ...); `error` itself when
+    it has no error number or names `path` already."""
+    if error.errno is None or error.filename == str(path):
+        return error
+    return OSError(error.errno, error.strerror or os.strerror(error.errno), str(path))
+
+
+def link_or_copy(source: str | os.PathLike, target: str | os.PathLike) -> None:
+    """`source`'s content under the name `target` too, replacing it whole: a hard link (no copy and no disk
+    space; the files of a run are only ever replaced, never changed in place, so the two names stay
+    independent), or a copy where the file system has no hard links."""
+    source, target = Path(source), Path(target)
+    if target.is_file() and os.path.samefile(source, target):
+        return  # one file already (a rename onto another name of it would leave the temporary name)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    temporary = target.with_name(f".{target.name}.link.tmp")
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(temporary)
+    try:
+        os.link(source, temporary)
+    except OSError:
+        with replaced(target) as copy:
+            shutil.copyfile(source, copy)
+        return
+    try:
+        os.replace(temporary, target)
+    except OSError as error:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise naming(error, target) from error
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:

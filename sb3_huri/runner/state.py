@@ -21,7 +21,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_huri.runner.files import read_json, replaced, write_text
+from sb3_huri.runner.files import RunError, read_json, replaced, write_text
 from zerith_gym import ZERITH1_ID
 
 STATE_FILE = "state.json"
@@ -41,9 +41,20 @@ class RunState:
 
     @staticmethod
     def read(run: str | os.PathLike, env_id: str = ZERITH1_ID) -> RunState:
-        """The run's state, or a new one if the run has none yet."""
+        """The run's state, or a new one if the run has none yet; RunError naming the file if it is not a
+        run's state (not JSON, or not the fields of one)."""
         path = Path(run) / env_id / STATE_FILE
-        return RunState(**read_json(path, "a run's training state")) if path.is_file() else RunState()
+        if not path.is_file():
+            return RunState()
+        what = "a run's training state"
+        data = read_json(path, what)
+        try:
+            state = RunState(**data)
+        except TypeError as error:
+            raise RunError(f"{path} is corrupt ({error}); it should hold {what}") from None
+        if not isinstance(state.timesteps, int) or not isinstance(state.sessions, list):
+            raise RunError(f"{path} is corrupt (timesteps {state.timesteps!r}); it should hold {what}")
+        return state
 
     def write(self, run: str | os.PathLike, env_id: str = ZERITH1_ID) -> None:
         """Replace the run's ``state.json`` (atomically: written last, it completes a checkpoint)."""

@@ -18,7 +18,9 @@ layout so that RL Zoo's tools read it::
 Checkpoints are taken between rollouts (after an update, before the next collection), so a checkpoint holds
 exactly the steps its model learnt from. A stop request (SIGTERM, SIGINT, the wall-time limit) lets the
 rollout under way finish and learn, checkpoints, and ends. A resumed run restores the model, normalizer,
-random states and curriculum stage, and reseeds its robots from the run's seed and step count.
+random states and curriculum stage, and reseeds its robots from the run's seed and step count. One trainer
+at a time writes a run folder (``<run>/.lock``, ``sb3_huri.runner.lock``); the checkpoint before the newest
+is kept in ``<run>/.previous/``, to go on from when the newest is damaged (``sb3_huri.runner.fallback``).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ import yaml
 from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.runner.build import preset_env, preset_model, resume_overrides
 from sb3_huri.runner.checkpoint import RunCheckpoint
+from sb3_huri.runner.fallback import recover
+from sb3_huri.runner.lock import hold_run
 from sb3_huri.runner.state import RunState, restore_random_states, start_on_levels
 from zerith_gym import ZERITH1_ID, robot_of
 
@@ -179,16 +183,28 @@ def _build_model(
 def train_run(request: RunRequest, options: TrainingOptions | None = None) -> int:
     """Train the run of `request` (new or resumed) and return the steps its newest checkpoint holds.
 
+    The run folder is held (``sb3_huri.runner.lock.hold_run``) for the whole training: a second trainer
+    of it is refused (``RunBusy``, a RunError naming the holder's pid) before anything is written. A resumed
+    run whose newest checkpoint is damaged goes on from its previous one (``sb3_huri.runner.fallback``).
     ValueError for a request that cannot be met (no preset for a new run, another method or seed than the
     run's, hyperparameters that would change a resumed run's networks), before anything is written.
     """
+    options = options or TrainingOptions()
+    if request.preset is None and not request.is_resume():
+        raise ValueError(f"{request.run} holds no {request.env_id}.zip to resume, and no preset given")
+    with hold_run(request.run):
+        recover(request.run, request.env_id, echo=lambda line: print(line, flush=True))
+        return _train(request, options)
+
+
+def _train(request: RunRequest, options: TrainingOptions) -> int:
+    """`train_run`'s training, in the folder it holds."""
     import torch as th
     from stable_baselines3.common.callbacks import CallbackList
 
     from zerith_gym.robots import locomotion_task
     from zerith_gym.scenarios import get_scenario
 
-    options = options or TrainingOptions()
     th.set_num_threads(options.threads)
     preset, overrides, method, seed = _resolve_preset(request)
     resume = request.is_resume()

@@ -31,7 +31,6 @@ beside it. Nothing else is stored: the run folders are the campaign's state.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -39,6 +38,7 @@ from typing import Any
 import yaml
 
 from sb3_huri.experiments.errors import ExperimentError
+from sb3_huri.runner.files import RunError, read_json
 from sb3_huri.runner.record import EVALUATIONS
 from sb3_huri.runner.state import RunState
 from zerith_gym import GO2LIKE_ID, ZERITH1_ID
@@ -101,15 +101,35 @@ class CampaignEntry:
 
     def evaluation(self) -> Path | None:
         """The entry's final evaluation file, ``<steps>.json``, if it was written (the other analyses' files
-        beside it, ``<steps>-<analysis>.json``, are not evaluations)."""
+        beside it, ``<steps>-<analysis>.json``, are not evaluations); RunError for one that does not read."""
         for path in sorted((self.run / EVALUATIONS).glob("*.json")):
-            if path.stem.isdigit() and json.loads(path.read_text()).get("entry") == self.name:
+            if not path.stem.isdigit():
+                continue
+            record = read_json(path, "an evaluation record")
+            if isinstance(record, dict) and record.get("entry") == self.name:
                 return path
         return None
 
     def state(self) -> str:
         """``done``, ``measure`` (evaluated, its analyses not complete), ``evaluate`` (trained, not yet
-        evaluated), ``train`` (more steps to go) or ``new``."""
+        evaluated), ``train`` (more steps to go), ``new``, or ``damaged``: a file of its run does not read
+        (``problem`` says which; its trainer falls back to the previous checkpoint where it can, and the
+        campaign leaves the entry alone where it cannot, the other entries going on)."""
+        try:
+            return self.checked_state()
+        except RunError:
+            return "damaged"
+
+    def problem(self) -> str | None:
+        """Why the entry's state is ``damaged`` (a file of its run that does not read), or None."""
+        try:
+            self.checked_state()
+        except RunError as error:
+            return str(error)
+        return None
+
+    def checked_state(self) -> str:
+        """``state``, or the RunError of a file of its run that does not read."""
         from sb3_huri.experiments.campaign.analyses import pending
 
         steps = self.trained_steps()
@@ -144,35 +164,43 @@ def _entry(raw: Any, index: int, base: Path, defaults: QueueDefaults, where: Pat
             )
             + f" (an entry has {', '.join(_REQUIRED)}, optionally {', '.join(_OPTIONAL)})"
         )
+
+    def bad(key: str, what: str) -> ExperimentError:
+        """The error of the entry's field `key`, naming the file, the entry and the field."""
+        return ExperimentError(f"{where}: entry {raw['name']}: {key}: {what}")
+
     if raw["protocol"] not in PROTOCOLS:
-        raise ExperimentError(
-            f"{where}: entry {raw['name']}: protocol {raw['protocol']!r} is not one of {', '.join(PROTOCOLS)}"
-        )
+        raise bad("protocol", f"protocol {raw['protocol']!r} is not one of {', '.join(PROTOCOLS)}")
     if raw["method"] not in METHODS:
-        raise ExperimentError(
-            f"{where}: entry {raw['name']}: unknown method {raw['method']!r}; methods: {', '.join(METHODS)}"
-        )
-    try:
-        seed, steps = int(raw["seed"]), int(float(raw["steps"]))
-    except (TypeError, ValueError) as error:
-        raise ExperimentError(
-            f"{where}: entry {raw['name']}: seed and steps must be numbers ({error})"
-        ) from None
+        raise bad("method", f"unknown method {raw['method']!r}; methods: {', '.join(METHODS)}")
+    seed, steps = _number(raw, "seed", int, bad), _number(raw, "steps", lambda v: int(float(v)), bad)
     if steps < 1:
-        raise ExperimentError(f"{where}: entry {raw['name']}: steps must be positive, got {steps}")
+        raise bad("steps", f"steps must be positive, got {steps}")
+    if not isinstance(raw["conf"], str | Path):
+        raise bad("conf", f"a preset file's path, got {raw['conf']!r}")
     conf = (base / raw["conf"]).resolve()
     if not conf.is_file():
-        raise ExperimentError(f"{where}: entry {raw['name']}: preset file {conf} not found")
+        raise bad("conf", f"preset file {raw['conf']} not found (looked for {conf})")
+    if not isinstance(raw["run"], str | Path):
+        raise bad("run", f"a run folder's path, got {raw['run']!r}")
     hyperparams = raw.get("hyperparams") or {}
     if not isinstance(hyperparams, dict) or not all(isinstance(key, str) for key in hyperparams):
-        raise ExperimentError(
-            f"{where}: entry {raw['name']}: hyperparams must map preset names to values, "
-            f"e.g. {{n_envs: 256, n_steps: 64}}; got {hyperparams!r}"
+        example = "{n_envs: 256, n_steps: 64}"
+        raise bad(
+            "hyperparams", f"hyperparams must map preset names to values, e.g. {example}; got {hyperparams!r}"
         )
     return CampaignEntry(
         str(raw["name"]), raw["protocol"], raw["method"], seed, (base / raw["run"]).resolve(), conf, steps,
         defaults, dict(hyperparams),
     )  # fmt: skip
+
+
+def _number(raw: dict[str, Any], key: str, read: Any, bad: Any) -> int:
+    """The entry's field `key` read by `read` as a number; `bad(key, what)`'s error otherwise."""
+    try:
+        return read(raw[key])
+    except (TypeError, ValueError):
+        raise bad(key, f"seed and steps must be numbers, got {raw[key]!r}") from None
 
 
 def load_queue(path: str | Path) -> list[CampaignEntry]:

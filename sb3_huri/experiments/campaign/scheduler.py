@@ -17,6 +17,14 @@ to ``<run>/train.log``.
 SIGTERM or Ctrl-C to the campaign stops every child after the rollout under way, with a checkpoint; so
 does ``--max-wall-minutes`` (analyses start no case after it; an evaluation or analysis under a signal
 stops at once, keeping the cases it wrote). The same command continues every entry where it stopped.
+
+A child dies with the campaign however the campaign dies (``campaign.child``: a campaign killed alone, by
+``kill -9`` or the OOM killer, makes its children checkpoint and stop), and holds its run folder's lock
+(``sb3_huri.runner.lock``) while it runs: a campaign started again waits for a folder still held (saying
+by whom) instead of training it beside another writer. A child that fails says why in one line
+(``<entry>: <file>: [Errno 28] No space left on device``), here and in ``--status``; one whose error a
+second start would meet again (a full disk, a read-only one, a file of its run that does not read) is
+left alone at once, its last good checkpoint kept; the other entries go on.
 """
 
 from __future__ import annotations
@@ -32,9 +40,11 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.experiments.campaign.child import EXIT_BUSY, EXIT_LEFT, read_failure
 from sb3_huri.experiments.campaign.queue import CampaignEntry, load_queue
 from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.runner.files import RunError
+from sb3_huri.runner.lock import hold_run, holder
 from zerith_gym import ZERITH1_ID
 
 CHECKPOINT_FREQ = 1_000_000
@@ -42,22 +52,36 @@ LOG_FILE = "train.log"
 TRIES = 2
 """Starts of an entry that ends unfinished (a crash, an error) before this campaign leaves it alone: a
 second start resumes it from its newest checkpoint, which gets past a one-off failure; a third is not
-made for one that fails every time."""
+made for one that fails every time (nor a second for an error a retry would meet again:
+``campaign.child.EXIT_LEFT``)."""
+POLL_S = 5.0
+"""Seconds between the campaign's checks of its children."""
 
 
 def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: int | None = None) -> str:
     """Train `entry` up to its steps (resuming its run), evaluate it, then measure its analyses
     (``campaign.analyses``); returns its state afterwards.
 
-    A training stopped early (wall time, SIGTERM) leaves the entry at ``train``, to be continued; analyses
-    cut by the wall time leave it at ``measure``."""
+    The run folder is held throughout (``hold_run``), and a damaged newest checkpoint replaced by the
+    previous one first (``sb3_huri.runner.fallback.recover``). A training stopped early (wall time,
+    SIGTERM) leaves the entry at ``train``, to be continued; analyses cut by the wall time leave it at
+    ``measure``. RunError for a file of the run that does not read."""
+    from sb3_huri.runner.fallback import recover
+
+    with hold_run(entry.run):
+        recover(entry.run, entry.env_id, echo=lambda line: print(line, flush=True))
+        return _run_held_entry(entry, max_wall_s, workers)
+
+
+def _run_held_entry(entry: CampaignEntry, max_wall_s: float | None, workers: int | None) -> str:
+    """``run_entry`` in the run folder it holds."""
     from sb3_huri.experiments.campaign import analyses
     from sb3_huri.experiments.campaign.final_evaluation import evaluate_entry
     from sb3_huri.runner.training import RobustnessSchedule, RunRequest, TrainingOptions, train_run
     from sb3_huri.zoo import read_preset
 
     deadline = None if max_wall_s is None else time.time() + max_wall_s
-    if entry.state() in ("new", "train"):
+    if entry.checked_state() in ("new", "train"):
         defaults = entry.defaults
         request = RunRequest(
             run=entry.run, preset=read_preset(entry.env_id, entry.conf), method=entry.method,
@@ -75,11 +99,11 @@ def run_entry(entry: CampaignEntry, max_wall_s: float | None = None, workers: in
             max_wall_s=max_wall_s, workers=workers,
         )  # fmt: skip
         train_run(request, options)
-    if entry.state() == "evaluate":
+    if entry.checked_state() == "evaluate":
         evaluate_entry(entry, workers=workers, episode_steps=entry.defaults.episode_steps)
-    if entry.state() == "measure":
+    if entry.checked_state() == "measure":
         analyses.measure(entry, deadline)
-    return entry.state()
+    return entry.checked_state()
 
 
 def runnable(entries: list[CampaignEntry], busy: set[Path], failed: set[str]) -> list[CampaignEntry]:
@@ -120,9 +144,10 @@ def campaign_lock(queue: Path) -> Iterator[None]:
 
 
 def _child(entry: CampaignEntry, queue: Path, core: int | None, deadline: float | None) -> subprocess.Popen:
-    """Start `entry` in a child process (pinned to `core`, unless None), logging to its run folder."""
+    """Start `entry` in a child process (pinned to `core`, unless None) that ends with this process,
+    logging to its run folder."""
     command = [sys.executable, "-m", "sb3_huri.experiments", "campaign", "--queue", str(queue)]
-    command += ["--entry", entry.name]
+    command += ["--entry", entry.name, "--parent", str(os.getpid())]
     if deadline is not None:
         command += ["--max-wall-minutes", f"{max(deadline - time.time(), 0.0) / 60:.2f}"]
     entry.run.mkdir(parents=True, exist_ok=True)
@@ -135,16 +160,22 @@ def _child(entry: CampaignEntry, queue: Path, core: int | None, deadline: float 
     return child
 
 
+Running = dict[int, tuple[CampaignEntry, subprocess.Popen]]
+"""The entries training now and their child processes, by core slot."""
+
+
 def run_campaign(
     queue: Path, slots: int | None = None, max_wall_s: float | None = None, echo=print
 ) -> list[CampaignEntry]:
     """Train the queue's entries, `slots` at once (default: one per core), until every entry is done, the
-    wall time is reached or a stop signal comes; returns the entries still unfinished."""
+    wall time is reached or a stop signal comes; returns the entries still unfinished. An entry whose run
+    folder another process holds waits until it is free (the campaign waits with it)."""
     cores = sorted(os.sched_getaffinity(0))
     slots = slots or len(cores)
     deadline = None if max_wall_s is None else time.time() + max_wall_s
-    running: dict[int, tuple[CampaignEntry, subprocess.Popen]] = {}  # by core slot
+    running: Running = {}
     failures: dict[str, int] = {}
+    held: dict[Path, int] = {}  # run folders that entries ready to start wait for, and their holders
     stopping = False
 
     def stop(*_: object) -> None:
@@ -164,30 +195,49 @@ def run_campaign(
                     echo(f"{time.strftime('%H:%M:%S')} {problem}")
                 said = problem
                 out_of_time = deadline is not None and time.time() >= deadline
-                if not stopping and not out_of_time:
-                    busy = {entry.run for entry, _ in running.values()}
-                    free = [slot for slot in range(slots) if slot not in running]
-                    for slot, entry in zip(
-                        free,
-                        runnable(entries, busy, {n for n, k in failures.items() if k >= TRIES}),
-                        strict=False,
-                    ):
-                        core = cores[slot % len(cores)] if slots > 1 else None
-                        running[slot] = (entry, _child(entry, queue, core, deadline))
-                        echo(f"{time.strftime('%H:%M:%S')} started {entry.name} on slot {slot}")
-                if not running:
+                if stopping or out_of_time:
+                    held = {}
+                else:
+                    failed = {name for name, count in failures.items() if count >= TRIES}
+                    held = _start(entries, running, failed, held, (queue, slots, cores, deadline), echo)
+                if not running and not held:
                     break
-                time.sleep(5)
+                time.sleep(POLL_S)
                 for slot, (entry, child) in list(running.items()):
                     if child.poll() is None:
                         continue
                     del running[slot]
                     out_of_time = deadline is not None and time.time() >= deadline
-                    _report_end(entry, child.returncode, stopping or out_of_time, failures, echo)
+                    _report_end(entry, child.returncode, stopping or out_of_time, failures, echo, child.pid)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return [entry for entry in _reread(queue, entries)[0] if entry.state() != "done"]
+
+
+def _start(
+    entries: list[CampaignEntry], running: Running, failed: set[str], held: dict[Path, int],
+    where: tuple[Path, int, list[int], float | None], echo: Callable[[str], Any],
+) -> dict[Path, int]:  # fmt: skip
+    """Start the entries that may start now (``runnable``) in the free slots of `running`, but those whose
+    run folder another process holds (a trainer still stopping, or someone else's), saying once which
+    process each waits for; returns those folders and their holders. `where`: the queue file, the slots,
+    the cores and the deadline."""
+    queue, slots, cores, deadline = where
+    ready = runnable(entries, {entry.run for entry, _ in running.values()}, failed)
+    holders = {entry.run: pid for entry in ready if (pid := holder(entry.run)) is not None}
+    for entry in ready:
+        if entry.run in holders and held.get(entry.run) != holders[entry.run]:
+            echo(
+                f"{time.strftime('%H:%M:%S')} {entry.name} waits: another process (pid {holders[entry.run]}) "
+                f"holds its run folder {entry.run}"
+            )
+    free = [slot for slot in range(slots) if slot not in running]
+    for slot, entry in zip(free, [e for e in ready if e.run not in holders], strict=False):
+        core = cores[slot % len(cores)] if slots > 1 else None
+        running[slot] = (entry, _child(entry, queue, core, deadline))
+        echo(f"{time.strftime('%H:%M:%S')} started {entry.name} on slot {slot}")
+    return holders
 
 
 def _reread(queue: Path, entries: list[CampaignEntry]) -> tuple[list[CampaignEntry], str | None]:
@@ -201,12 +251,26 @@ def _reread(queue: Path, entries: list[CampaignEntry]) -> tuple[list[CampaignEnt
 
 
 def _report_end(
-    entry: CampaignEntry, returncode: int, stopped: bool, failures: dict[str, int], echo: Callable[[str], Any]
+    entry: CampaignEntry,
+    returncode: int,
+    stopped: bool,
+    failures: dict[str, int],
+    echo: Callable[[str], Any],
+    pid: int | None = None,
 ) -> None:
-    """Say how an entry's child ended; one that ended unfinished though nothing stopped it counts as a failure
-    (started again until it has failed `TRIES` times; its ``<run>/train.log`` says why)."""
+    """Say how an entry's child (process `pid`) ended, and why in one line if it failed; one that ended
+    unfinished though nothing stopped it counts as a failure (started again until it has failed `TRIES`
+    times, and not again after an error a retry would meet again; its ``<run>/train.log`` has the rest).
+    A child that found its run folder held by another process did not fail: the entry starts again once the
+    folder is free."""
     state = entry.state()
     echo(f"{time.strftime('%H:%M:%S')} {entry.name}: exit {returncode}, {state}")
+    if returncode == EXIT_BUSY:
+        echo(f"{entry.name}: another process holds its run folder {entry.run}; started once it is free")
+        return
+    note = read_failure(entry, pid) if returncode != 0 else None
+    if note is not None:
+        echo(f"{entry.name}: {note['error']}")
     if stopped:
         if state != "done":
             echo(
@@ -214,8 +278,14 @@ def _report_end(
             )
         return
     if returncode != 0 or state != "done":
-        failures[entry.name] = failures.get(entry.name, 0) + 1
+        lasting = returncode == EXIT_LEFT
+        failures[entry.name] = TRIES if lasting else failures.get(entry.name, 0) + 1
         again = "started again" if failures[entry.name] < TRIES else "left alone"
+        if lasting:
+            again += (
+                ": a second start would fail the same way; its last good checkpoint is kept, and the next "
+                "campaign resumes from it once the cause is gone"
+            )
         echo(f"{entry.name} ended unfinished ({failures[entry.name]} of {TRIES}): {again}")
 
 
@@ -233,26 +303,17 @@ def recent_rate(run: Path, rows: int = 200) -> float | None:
 def status_table(queue: Path) -> str:
     """Every entry's protocol, method, seed, steps against its target, training hours, recent speed, the
     training hours left at that speed, and state; then the whole queue's steps trained against its total
-    (each run folder counted once, at its largest target)."""
-    import json
-
+    (each run folder counted once, at its largest target); then, for the entries that have one, why their
+    run does not read or why their last child failed."""
     header = f"{'entry':24} {'protocol':10} {'method':14} seed {'steps':>12} {'target':>12} {'hours':>6}"
     lines = [f"{header} {'steps/s':>7} {'left h':>6} state"]
     entries = load_queue(queue)
     trained: dict[Path, int] = {}  # steps each run folder holds
+    notes = []
     for entry in entries:
-        state_file = entry.run / entry.env_id / "state.json"
-        hours = json.loads(state_file.read_text())["wall_s"] / 3600 if state_file.is_file() else 0.0
-        steps, state = entry.trained_steps(), entry.state()
-        trained[entry.run] = steps
-        rate = recent_rate(entry.run) if state == "train" else None
-        speed = (
-            f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
-        )
-        lines.append(
-            f"{entry.name:24} {entry.protocol:10} {entry.method:14} {entry.seed:4} "
-            f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
-        )
+        line, trained[entry.run], note = _status_row(entry)
+        lines.append(line)
+        notes += [note] if note else []
     targets: dict[Path, int] = {}
     for entry in entries:
         targets[entry.run] = max(targets.get(entry.run, 0), entry.steps)
@@ -262,4 +323,29 @@ def status_table(queue: Path) -> str:
         f"queue: {done:,} of {total:,} steps trained ({100 * done / total:.0f}%) in {len(targets)} run "
         f"folders, {total - done:,} left"
     )
-    return "\n".join(lines)
+    return "\n".join(lines + notes)
+
+
+def _status_row(entry: CampaignEntry) -> tuple[str, int, str | None]:
+    """The entry's row of the status table, the steps its run holds (0 where its state does not read), and
+    a note: why its run does not read, or why its last child failed (None when neither)."""
+    from sb3_huri.runner.state import RunState
+
+    state, problem = entry.state(), entry.problem()
+    try:
+        run_state = RunState.read(entry.run, entry.env_id)
+        rate = recent_rate(entry.run) if state == "train" else None
+    except RunError:
+        run_state, rate = RunState(), None
+    steps, hours = run_state.timesteps, run_state.wall_s / 3600
+    speed = f"{rate:7.0f} {max(entry.steps - steps, 0) / rate / 3600:6.1f}" if rate else f"{'-':>7} {'-':>6}"
+    line = (
+        f"{entry.name:24} {entry.protocol:10} {entry.method:14} {entry.seed:4} "
+        f"{steps:12,} {entry.steps:12,} {hours:6.2f} {speed} {state}"
+    )
+    failure = read_failure(entry)
+    if problem is not None:
+        return line, steps, f"{entry.name}: {problem}"
+    if failure is not None:
+        return line, steps, f"{entry.name}: failed {failure.get('when', '')}: {failure['error']}"
+    return line, steps, None
