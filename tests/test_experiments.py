@@ -275,9 +275,14 @@ def test_ray_backend_runs_the_grid_as_ray_tasks(conf: Path, tmp_path: Path) -> N
 def test_unknown_methods_envs_and_backends_are_refused(tmp_path: Path, capsys) -> None:
     base = ["run", "--timesteps", "64", "--seeds", "0", "--out", str(tmp_path / "exp")]
     assert main([*base, "--methods", "huri", "hury"]) == 2
-    assert "unknown method(s) hury; methods: huri-baseline, huri-cvar0.5" in capsys.readouterr().err
-    assert main([*base, "--methods", "huri", "--env", "Pendulum-v1"]) == 2
-    assert "unknown env 'Pendulum-v1'" in capsys.readouterr().err
+    assert (
+        "unknown method(s) hury; methods: huri-baseline, huri-neutral, huri-cvar0.5"
+        in capsys.readouterr().err
+    )
+    assert main([*base, "--methods", "huri", "--env", "NoSuchEnv-v0"]) == 2
+    assert "unknown env 'NoSuchEnv-v0'" in capsys.readouterr().err
+    assert main([*base, "--methods", "huri", "--env", "Go2Like-v0"]) == 2
+    assert "Go2Like-v0 is not evaluated by the grid" in capsys.readouterr().err
     assert main([*base, "--methods", "huri", "-conf", str(tmp_path / "none.yml")]) == 2
     assert "none.yml" in capsys.readouterr().err
     with pytest.raises(ExperimentError, match="unknown backend 'slurm'"):

@@ -7,5 +7,8 @@
 - ``job``: one run's whole job (train, then evaluate), what a backend executes;
 - ``backends``: a local process pool, or Ray tasks across a cluster;
 - ``driver``: the ``run`` command: skip finished runs, hand the rest to a backend, print progress;
-- ``report``: ``report.md`` and figures beside the paper's numbers.
+- ``report``: ``report.md`` and figures beside the paper's numbers;
+- ``standard``, ``standard_report``: a standard Gymnasium task (``Walker2d-v5``, ...) instead of a Zerith env:
+  its runs trained as RL Zoo trains them and evaluated on the task's return, and their report (means, IQMs,
+  the probability of beating PPO over seeds).
 """

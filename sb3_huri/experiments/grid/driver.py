@@ -100,6 +100,8 @@ def run_experiment(
         cpus = cpus_per_run or max(1, cores // parallel)
         runner: Backend = LocalBackend(parallel)
         echo(f"local backend: {parallel} run(s) at once, {cpus} core(s) each")
+        if parallel * cpus > cores:
+            echo(f"warning: {parallel * cpus} cores asked for on {cores}: runs share cores and train slower")
     else:
         cpus = cpus_per_run or 1
         runner = RayBackend(cpus, ray_address)
@@ -149,7 +151,9 @@ class _Progress:
             total = self.settings.timesteps
             now = time.time()
             if status.state == "training":
-                status.steps = max(status.steps, RunState.read(folder).timesteps)  # the newest checkpoint
+                status.steps = max(
+                    status.steps, RunState.read(folder, self.settings.env).timesteps
+                )  # the newest checkpoint
                 steps0, t0 = self.first.setdefault(key, (status.steps, now))
                 mark = ("training", min(10, 10 * status.steps // total))
                 rate = (status.steps - steps0) / (now - t0) if now > t0 else 0.0

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from sb3_huri.experiments.grid.layout import (
     RunBusy,
+    is_standard,
     load_settings,
     read_status,
     run_folder,
@@ -49,7 +50,8 @@ class RunOutcome:
 
 
 def execute_run(task: RunJob) -> RunOutcome:
-    """Train the run of ``task`` to the experiment's steps (resuming), then evaluate it if it is not yet.
+    """Train the run of ``task`` to the experiment's steps (resuming), then evaluate it if it is not yet: a
+    Zerith env on its batched env and the paper's protocol, a standard task by ``grid.standard``.
 
     Never raises for a failing run: the error is kept in its ``status.json`` and returned, so one broken
     run does not stop the grid (Ctrl-C and kills stop it, and are resumed by the next command).
@@ -57,6 +59,7 @@ def execute_run(task: RunJob) -> RunOutcome:
     import torch as th
 
     from sb3_huri.experiments.grid.evaluation import evaluate_run
+    from sb3_huri.experiments.grid.standard import evaluate_standard_run, train_standard_run
     from sb3_huri.experiments.grid.training import env_workers, train_grid_run
 
     th.set_num_threads(1)  # small networks: one thread is fastest, and the runs share the machine
@@ -68,12 +71,19 @@ def execute_run(task: RunJob) -> RunOutcome:
             status = read_status(folder, task.method, task.seed, settings.env)
             status.error = None
             try:
+                standard = is_standard(settings.env)
                 if status.trained_to is None or status.trained_to < settings.timesteps:
-                    workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
-                    status = train_grid_run(folder, status, settings, workers)
+                    if standard:
+                        status = train_standard_run(folder, status, settings)
+                    else:
+                        workers = env_workers(task.cpus, int(settings.preset["n_envs"]))
+                        status = train_grid_run(folder, status, settings, workers)
                 if status.evaluated != {**asdict(settings.eval), "trained_to": status.trained_to}:
-                    workers = env_workers(task.cpus, settings.eval.episodes)
-                    status = evaluate_run(folder, status, settings, workers)
+                    if standard:
+                        status = evaluate_standard_run(folder, status, settings)
+                    else:
+                        workers = env_workers(task.cpus, settings.eval.episodes)
+                        status = evaluate_run(folder, status, settings, workers)
             except Exception:
                 status.state, status.error = "failed", traceback.format_exc()
                 write_status(folder, status)

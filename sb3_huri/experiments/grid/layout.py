@@ -12,6 +12,9 @@ An experiment folder ``DIR`` holds::
         evaluations/<steps>-risk_<case>.npz   the critic's trace in the risk cases (the Fig. 5 analog)
     DIR/report.md, DIR/*.png                  written by ``python -m sb3_huri.experiments report DIR``
 
+A standard task's run (``grid.standard``) has the same files but for the risk traces, its evaluation record
+holding the final model's episode returns.
+
 Every file is replaced atomically (``sb3_huri.runner.files``), so a kill at any moment leaves either the
 old or the new version, never a torn one. A run's folder is the one format every training of the package
 writes (``sb3_huri.runner``): a resumed run continues from its newest checkpoint, which ``state.json``
@@ -215,27 +218,22 @@ def write_status(folder: Path, status: RunStatus) -> None:
 
 @contextlib.contextmanager
 def run_lock(folder: Path) -> Iterator[None]:
-    """Hold the run's lock file while training or evaluating it (RunBusy if a live process holds it).
+    """Hold the run's lock while training or evaluating it (RunBusy if a live process holds it).
 
-    The OS releases the lock when its holder dies, however it dies, so a killed command never leaves a
-    stale lock; the lock keeps a second command (or a task Ray retried elsewhere while the first still
-    runs) from writing the same run at once.
+    The runner's lock (``sb3_huri.runner.lock.hold_run`` on ``<run>/.lock``), which the trainer inside
+    takes again (in one process the holds nest): the OS releases it when its holder dies, however it dies,
+    so a killed command never leaves a stale lock, and it keeps a second command (or a task Ray retried
+    elsewhere while the first still runs) from writing the same run at once.
     """
-    folder.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:  # no advisory locks (Windows): one command per folder is the user's to ensure
+    from sb3_huri.runner.lock import RunBusy as Held
+    from sb3_huri.runner.lock import hold_run
+
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(hold_run(folder))
+        except Held as error:
+            raise RunBusy(str(error)) from error
         yield
-        return
-    with open(folder / ".lock", "w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as error:
-            raise RunBusy(f"{folder} is in use by another process") from error
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def validate_grid(env: str, methods: Sequence[str], seeds: Sequence[int]) -> list[tuple[str, int]]:
@@ -254,15 +252,36 @@ def validate_grid(env: str, methods: Sequence[str], seeds: Sequence[int]) -> lis
 
 
 def check_env(env: str) -> None:
-    """ExperimentError unless ``env`` is a registered Zerith env (the runs train on its batched VecEnv)."""
+    """ExperimentError unless ``env`` is a Zerith env (trained on its batched VecEnv, evaluated on the
+    paper's protocol) or a standard Gymnasium env (``is_standard``)."""
+    env_kind(env)
+
+
+def env_kind(env: str) -> str:
+    """``"zerith"`` for a registered Zerith-1 env, ``"standard"`` for any other registered Gymnasium env that
+    is not a robot of ``zerith_gym`` (``HalfCheetah-v5``, ``Walker2d-v5``: ``grid.standard``);
+    ExperimentError for an unregistered env or another robot (its protocol is not the grid's)."""
     import gymnasium as gym
 
     import zerith_gym  # noqa: F401  (registers the Zerith envs)
-    from zerith_gym import ZERITH1_ENTRY_POINT
+    from zerith_gym import ROBOT_ENTRY_POINTS, ZERITH1_ENTRY_POINT
 
     zerith = [spec.id for spec in gym.registry.values() if spec.entry_point == ZERITH1_ENTRY_POINT]
-    if env not in zerith:
+    if env in zerith:
+        return "zerith"
+    if env not in gym.registry:
         raise ExperimentError(
-            f"unknown env {env!r}: the experiments train Zerith robots on their batched env; envs: "
-            f"{', '.join(zerith)}"
+            f"unknown env {env!r}: the experiments train a Zerith env ({', '.join(zerith)}) or a registered "
+            "Gymnasium env (e.g. Walker2d-v5)"
         )
+    if gym.spec(env).entry_point in ROBOT_ENTRY_POINTS:
+        raise ExperimentError(
+            f"{env} is not evaluated by the grid: its Zerith protocol is Zerith1-v0's ({', '.join(zerith)}); "
+            "the campaign evaluates it (docs/campaign.md)"
+        )
+    return "standard"
+
+
+def is_standard(env: str) -> bool:
+    """Whether the grid trains ``env`` as a standard task (``grid.standard``) rather than a Zerith env."""
+    return env_kind(env) == "standard"

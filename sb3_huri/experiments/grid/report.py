@@ -12,7 +12,8 @@
 - whether each of the paper's orderings holds in our means, and whether the confidence intervals
   separate the methods.
 
-It reads whatever the folder holds, finished or not, and says which runs are missing.
+It reads whatever the folder holds, finished or not, and says which runs are missing. Standard tasks
+(``Walker2d-v5``, ...) have their own report, ``grid.standard_report``.
 """
 
 from __future__ import annotations
@@ -28,7 +29,15 @@ import numpy as np
 
 from sb3_huri.experiments import paper
 from sb3_huri.experiments.errors import ExperimentError
-from sb3_huri.experiments.grid.layout import RunStatus, Settings, load_settings, read_status, run_folder
+from sb3_huri.experiments.grid.layout import (
+    EXPERIMENT_FILE,
+    RunStatus,
+    Settings,
+    is_standard,
+    load_settings,
+    read_status,
+    run_folder,
+)
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.runner.curve import final_return, read_curve
 from sb3_huri.runner.evaluation import (
@@ -144,8 +153,13 @@ def _ordering(
 
 
 def write_report(out: str | Path) -> Path:
-    """Write ``report.md``, ``returns.png`` and ``risk.png`` into the experiment folder ``out``."""
+    """Write ``report.md``, ``returns.png`` and ``risk.png`` into the experiment folder ``out``; for a
+    standard task, or a folder of standard tasks' experiment folders, ``grid.standard_report``'s report."""
     out = Path(out).resolve()
+    if not (out / EXPERIMENT_FILE).is_file() or is_standard(load_settings(out).env):
+        from sb3_huri.experiments.grid.standard_report import write_standard_report
+
+        return write_standard_report(out)
     settings, results = load_results(out)
     grouped = _by_method(results)
     table1_lines, table1 = _table1_section(grouped)
