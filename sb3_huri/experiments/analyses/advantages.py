@@ -136,7 +136,7 @@ def rollout_measures(model: Any, last_atoms: np.ndarray, dones: np.ndarray) -> d
     return measures
 
 
-def _training_env(
+def training_env(
     run: Path, env_id: str, normalizer: Any, seed: int, newest: bool
 ) -> tuple[Any, Any, list[Any], int]:
     """The run's training env in this process with the checkpoint's ``normalizer`` (its statistics frozen),
@@ -203,14 +203,14 @@ def measure_advantages(
         raise ExperimentError(f"{run}: its model has no quantile critic, hence no risk distortion to measure")
     began, band = time.time(), band_of(model)
     newest = model_file == run / f"{env_id}.zip"
-    env, randomization, terrain, episode_steps = _training_env(run, env_id, normalizer, seed, newest)
+    env, randomization, terrain, episode_steps = training_env(run, env_id, normalizer, seed, newest)
     per_episode = math.ceil(episode_steps / model.n_steps)
     warmup = per_episode if warmup is None else warmup
     rollouts = max(per_episode, 2) if rollouts is None else rollouts
     try:
         model.set_env(env)
         model.set_logger(configure(None, []))
-        callback = _hold_stage(model, randomization, terrain)
+        callback = hold_stage(model, randomization, terrain)
         model._last_obs, model._last_episode_starts = env.reset(), np.ones(env.num_envs, dtype=bool)
         th.manual_seed(seed)
         measured = [
@@ -218,20 +218,13 @@ def measure_advantages(
         ]
     finally:
         env.close()
-    curriculum = None
-    if randomization is not None:  # the stage the rollouts were collected at
-        curriculum = {
-            "stage": randomization.stage,
-            "stages": randomization.stages,
-            "scale": randomization.scale,
-        }
     record = {
         "env_id": env_id,
         "method": getattr(model, "method", None),
         "steps": steps,
         "model": str(model_file.relative_to(run)) if model_file.is_relative_to(run) else str(model_file),
         "band": band,
-        "curriculum": curriculum,
+        "curriculum": curriculum_record(randomization),
         "settings": {
             "seed": seed,
             "warmup": warmup,
@@ -249,7 +242,15 @@ def measure_advantages(
     return path
 
 
-def _hold_stage(model: Any, randomization: Any, others: list[Any]) -> Any:
+def curriculum_record(randomization: Any) -> dict[str, Any] | None:
+    """The stage the rollouts were collected at, as a measure's file records it (None without a
+    randomization curriculum)."""
+    if randomization is None:
+        return None
+    return {"stage": randomization.stage, "stages": randomization.stages, "scale": randomization.scale}
+
+
+def hold_stage(model: Any, randomization: Any, others: list[Any]) -> Any:
     """Set the randomization curriculum's stage once (its callback then leaves the rollouts: the stage is the
     checkpoint's throughout), and return the callback the rollouts run: the ``others`` (the terrain's
     levels move as in training) behind the algorithm's own (the RND predictor's fit first)."""

@@ -36,7 +36,7 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.utils import explained_variance, obs_as_tensor
 
-from sb3_huri.experiments.analyses.advantages import _hold_stage, _training_env
+from sb3_huri.experiments.analyses.advantages import curriculum_record, hold_stage, training_env
 from sb3_huri.experiments.analyses.force_magnitude import checkpoint_files
 from sb3_huri.experiments.analyses.risk_levels import band_of, run_env_id
 from sb3_huri.experiments.errors import ExperimentError
@@ -184,7 +184,7 @@ def measure_value_baseline(
     with checkpoint_files(run, steps, env_id) as (measured_steps, model_file, normalizer_file, source):
         model, normalizer = load_checkpoint(model_file, normalizer_file)
         newest = source == f"{env_id}.zip"
-        env, randomization, terrain, episode_steps = _training_env(run, env_id, normalizer, seed, newest)
+        env, randomization, terrain, episode_steps = training_env(run, env_id, normalizer, seed, newest)
     if model.num_timesteps != measured_steps:
         raise ExperimentError(f"{run} saved a new checkpoint while it was read; measure it again")
     warmup = math.ceil(episode_steps / model.n_steps) if warmup is None else warmup
@@ -192,7 +192,7 @@ def measure_value_baseline(
     try:
         model.set_env(env)
         model.set_logger(configure(None, []))
-        callback = _hold_stage(model, randomization, [*terrain, ends])
+        callback = hold_stage(model, randomization, [*terrain, ends])
         model._last_obs, model._last_episode_starts = env.reset(), np.ones(env.num_envs, dtype=bool)
         th.manual_seed(seed)
         for _ in range(warmup):
@@ -208,9 +208,7 @@ def measure_value_baseline(
         "steps": measured_steps,
         "model": source,
         "band": band_of(model),
-        "curriculum": None
-        if randomization is None
-        else {"stage": randomization.stage, "stages": randomization.stages, "scale": randomization.scale},
+        "curriculum": curriculum_record(randomization),
         "settings": {
             "seed": seed,
             "warmup": warmup,
