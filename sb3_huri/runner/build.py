@@ -28,12 +28,18 @@ def preset_env(
     `env_options` (`scenario`, `workers`, `backend`, ...). `normalizer`: a saved `vecnormalize.pkl` to go on
     with (a resumed run); otherwise a new normalizer with the preset's settings and discount.
     """
-    from stable_baselines3.common.vec_env import VecNormalize
-
     import zerith_gym
 
     env_kwargs = {**(preset.get("env_kwargs") or {}), **env_options}
     env = zerith_gym.make_vec_env(int(n_envs or preset["n_envs"]), seed=seed, **env_kwargs)
+    return preset_normalized(env, preset, normalizer)
+
+
+def preset_normalized(env: Any, preset: dict[str, Any], normalizer: Any = None) -> Any:
+    """`env` in the preset's `VecNormalize` (RL Zoo's reading of `normalize`, the preset's discount), with
+    the statistics of the saved `normalizer` file if given; `env` itself if the preset does not normalize."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
     norm = normalize_kwargs(preset)
     if norm is None:
         return env

@@ -30,6 +30,7 @@ import numpy as np
 import yaml
 
 from sb3_huri.experiments.grid.layout import RunStatus, Settings, write_status
+from sb3_huri.runner.build import preset_normalized
 from sb3_huri.runner.files import RunError, read_json, write_json
 from sb3_huri.runner.record import record_path
 from sb3_huri.runner.state import RunState, hardware
@@ -45,21 +46,6 @@ def make_env(env_id: str, preset: dict[str, Any], seed: int, n_envs: int | None 
 
     count = int(n_envs or preset["n_envs"])
     return make_vec_env(env_id, n_envs=count, seed=seed, env_kwargs=dict(preset.get("env_kwargs") or {}))
-
-
-def _normalized(env: Any, preset: dict[str, Any], saved: Path | None) -> Any:
-    """`env` in the preset's ``VecNormalize`` (RL Zoo's reading of ``normalize``, ``gamma`` the preset's),
-    the statistics of `saved` if given; `env` as it is if the preset does not normalize."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    from sb3_huri.zoo import normalize_kwargs
-
-    settings = normalize_kwargs(preset)
-    if settings is None:
-        return env
-    if saved is not None:
-        return VecNormalize.load(str(saved), env)
-    return VecNormalize(env, gamma=preset.get("gamma", 0.99), **settings)
 
 
 def _model(folder: Path, settings: Settings, method: str, seed: int, env: Any) -> Any:
@@ -103,7 +89,7 @@ def train_standard_run(folder: Path, status: RunStatus, settings: Settings) -> R
         write_status(folder, status)
         saved = folder / settings.env / "vecnormalize.pkl"
         env = make_env(settings.env, settings.preset, seed=status.seed)
-        env = _normalized(env, settings.preset, saved if resumed and saved.is_file() else None)
+        env = preset_normalized(env, settings.preset, saved if resumed and saved.is_file() else None)
         try:
             model = _model(folder, settings, status.method, status.seed, env)
             run_args = {"algo": status.method, "env": settings.env, "seed": status.seed}
@@ -161,7 +147,7 @@ def evaluate_checkpoint(folder: Path, env_id: str, episodes: int, seed: int) -> 
     saved = folder / env_id / "vecnormalize.pkl"
     with random_states_kept():
         model = load_model(folder / f"{env_id}.zip")
-        env = _normalized(
+        env = preset_normalized(
             make_env(env_id, preset, seed=seed, n_envs=1), preset, saved if saved.is_file() else None
         )
         try:
