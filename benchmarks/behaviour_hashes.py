@@ -5,6 +5,8 @@ that must not alter behaviour (a refactor, a speed-up) against the fingerprints 
   every policy and critic observation, reward, termination and truncation (float bytes, in order).
 - `train/<method>`: the robust recipe (`hyperparams/huri_robust.yml`) shrunk to 8 robots x 32 steps per
   rollout, trained for 3 rollouts from seed 0 on one thread; the hash of the policy's parameters after.
+- `standard/<method>`: the `Walker2d-v5` preset of `hyperparams/huri.yml` (SB3's PPO settings: one env,
+  minibatches of 64, 10 epochs) shrunk to 256 steps per rollout, 3 rollouts from seed 0 on one thread.
 
     python benchmarks/behaviour_hashes.py                                     # print them
     python benchmarks/behaviour_hashes.py --write benchmarks/behaviour_hashes.json
@@ -22,12 +24,13 @@ import json
 import platform
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ("train", "robust", "sudden-feet", "terrain")
-METHODS = ("huri", "huri-baseline")
+METHODS = ("huri", "huri-baseline", "huri-neutral")
 
 
 def env_hash(scenario: str, robots: int = 8, steps: int = 200) -> str:
@@ -69,6 +72,31 @@ def training_hash(method: str, rollouts: int = 3) -> str:
         model.learn(rollouts * 8 * 32, callback=CallbackList(get_callback_list(preset)))
     finally:
         env.close()
+    return _parameters_hash(model)
+
+
+def standard_hash(method: str, rollouts: int = 3, n_steps: int = 256) -> str:
+    """The hash of the policy's parameters after a few rollouts of the shrunk `Walker2d-v5` preset."""
+    import torch as th
+
+    from sb3_huri.experiments.grid.standard import make_env
+    from sb3_huri.runner.build import preset_model, preset_normalized
+    from sb3_huri.zoo import read_preset
+
+    th.set_num_threads(1)
+    preset = read_preset("Walker2d-v5", ROOT / "hyperparams" / "huri.yml")
+    preset.update(n_steps=n_steps)
+    env = preset_normalized(make_env("Walker2d-v5", preset, seed=0), preset)
+    try:
+        model = preset_model(preset, env, method=method, seed=0, device="cpu")
+        model.learn(rollouts * n_steps)
+    finally:
+        env.close()
+    return _parameters_hash(model)
+
+
+def _parameters_hash(model: Any) -> str:
+    """The hash of the policy's parameters and buffers (the RND's statistics among them)."""
     digest = hashlib.sha256()
     _hash_state(digest, model.policy.state_dict())
     return digest.hexdigest()[:16]
@@ -90,6 +118,7 @@ def fingerprints() -> dict[str, str]:
     return {
         **{f"env/{scenario}": env_hash(scenario) for scenario in SCENARIOS},
         **{f"train/{method}": training_hash(method) for method in METHODS},
+        **{f"standard/{method}": standard_hash(method) for method in METHODS},
     }
 
 

@@ -17,7 +17,7 @@ HOLD_RUN = "import sys\nfrom sb3_huri.runner.lock import hold_run\nwith hold_run
 HOLD_RUN += "    print('held', flush=True)\n    sys.stdin.read()\n"
 """A program that holds the run folder it is given (``sb3_huri.runner.lock``) until its input ends."""
 
-SMALL = dict(n_steps=32, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
+SMALL = dict(n_steps=32, n_minibatches=4, n_epochs=2, policy_kwargs=dict(net_arch=[32, 32]))
 
 
 class PendulumWithCritic(gym.ObservationWrapper):

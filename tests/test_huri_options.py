@@ -97,9 +97,7 @@ def test_no_warning_with_normalized_rewards_or_without_absolute_iqr_thresholds(s
 
 def kl_adaptive_model(desired_kl: float, **kwargs) -> tuple[HuRiPPO, list[float], KeyRecorder]:
     """A model whose per-minibatch KL values are recorded as the learning rate adapts to them."""
-    model = HuRiPPO(
-        "MlpPolicy", dict_env(), learning_rate=1e-3, desired_kl=desired_kl, seed=0, n_minibatches=4, **SMALL
-    )
+    model = HuRiPPO("MlpPolicy", dict_env(), learning_rate=1e-3, desired_kl=desired_kl, seed=0, **SMALL)
     recorder = KeyRecorder()
     model.set_logger(Logger(folder=None, output_formats=[recorder]))
     kls: list[float] = []
@@ -259,8 +257,9 @@ def test_rnd_kwargs_reach_the_rnd_module():
 
 def test_beta_rnd_is_material_on_the_first_rollouts_and_falls_as_states_become_familiar():
     model = HuRiPPO(
-        "MlpPolicy", dict_env(), seed=0, n_steps=64, n_epochs=5, policy_kwargs=dict(net_arch=[32])
-    )
+        "MlpPolicy", dict_env(), seed=0, n_steps=64, n_minibatches=4, n_epochs=5,
+        policy_kwargs=dict(net_arch=[32]),
+    )  # fmt: skip
     recorder = KeyRecorder()
     model.set_logger(Logger(folder=None, output_formats=[recorder]))
     model.learn(128 * 12)

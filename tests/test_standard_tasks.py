@@ -50,7 +50,8 @@ def test_the_five_seed_presets_are_the_ppo_papers_settings_with_sb3s_ppo_default
     defaults = inspect.signature(PPO.__init__).parameters
     sb3 = {name: defaults[name].default for name in ("vf_coef", "max_grad_norm")}
     assert sb3 == {"vf_coef": 0.5, "max_grad_norm": 0.5}
-    assert presets["Hopper-v5"] == ppo_paper
+    # Hopper-v5 keeps the coefficients it was measured with, HuRiPPO's defaults then
+    assert presets["Hopper-v5"] == {**ppo_paper, "vf_coef": 1.0, "max_grad_norm": 1.0}
     for env in ("HalfCheetah-v5", "Walker2d-v5"):
         assert presets[env] == {**ppo_paper, **sb3}
         assert "method" not in presets[env]  # the methods differ in what they are, nothing else

@@ -74,8 +74,10 @@ class RandomNetworkDistillation(nn.Module):
         std = th.as_tensor(np.sqrt(self.obs_rms.var + 1e-8), dtype=inputs.dtype, device=inputs.device)
         return th.clamp((inputs - mean) / std, -self.clip_obs, self.clip_obs)
 
-    def _squared_error(self, normalized: th.Tensor) -> th.Tensor:
-        return (self.predictor(normalized) - self.target(normalized)).pow(2).mean(dim=-1)
+    def _squared_error(self, normalized: th.Tensor, targets: th.Tensor | None = None) -> th.Tensor:
+        """``mean_k (f(s)_k - g(s)_k)^2`` of normalized inputs; `targets`: ``g(s)`` if already computed."""
+        targets = self.target(normalized) if targets is None else targets
+        return (self.predictor(normalized) - targets).pow(2).mean(dim=-1)
 
     def prediction_error(self, inputs: th.Tensor) -> th.Tensor:
         """Novelty of each critic state, shape ``(B,)``, without gradient.
@@ -93,11 +95,13 @@ class RandomNetworkDistillation(nn.Module):
     def fit(self, inputs: th.Tensor, n_epochs: int, batch_size: int) -> float:
         """Train the predictor on a batch of critic states; returns the mean loss of the last epoch."""
         normalized = self.normalize(inputs.detach())
+        with th.no_grad():  # the target is frozen: its outputs are computed once, not per minibatch
+            targets = self.target(normalized)
         losses = []
         for _ in range(n_epochs):
             losses = []
             for indices in th.randperm(len(normalized), device=normalized.device).split(batch_size):
-                loss = self._squared_error(normalized[indices]).mean()
+                loss = self._squared_error(normalized[indices], targets[indices]).mean()
                 self.optimizer.zero_grad()
                 loss.backward()
                 self.optimizer.step()

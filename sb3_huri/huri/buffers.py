@@ -28,12 +28,13 @@ class HuRiRolloutBufferSamples(NamedTuple):
 class _RiskAwareRolloutMixin:
     """What HuRi adds to SB3's rollout buffers.
 
-    Per step it stores the sorted critic atoms (``atoms``), and once the rollout is complete the algorithm
-    sets the distortion weights ``w(beta_s)`` of each state and its diagnostics (``risk``, ``iqr``,
-    ``rnd_error``) with :meth:`set_risk`, and the atoms and distorted value of the final state of each
-    truncated episode with :meth:`set_time_out_bootstrap`. :meth:`compute_returns_and_advantage` then
-    computes GAE on the distorted values ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)`` and the SR(lambda)
-    target atoms of the quantile loss. ``td_level`` says at which level a TD error values its two states
+    Per step it stores the critic atoms (``atoms``), which the algorithm sorts once the rollout is complete
+    (:meth:`sort_atoms`); it then sets the distortion weights ``w(beta_s)`` of each state and its
+    diagnostics (``risk``, ``iqr``, ``rnd_error``) with :meth:`set_risk`, and the atoms and distorted value
+    of the final state of each truncated episode with :meth:`set_time_out_bootstrap`.
+    :meth:`compute_returns_and_advantage` then computes GAE on the distorted values
+    ``V_beta(s) = sum_i w_i(beta_s) theta_(i)(s)`` and the SR(lambda) target atoms of the quantile loss.
+    ``td_level`` says at which level a TD error values its two states
     (``sb3_huri.common.risk_gae``): ``"state"``, each at its own (SB3's GAE on the per-state values), or
     ``"step"``, both at the level of the state the step starts from; :meth:`advantages_under` gives the
     rollout's advantages under either.
@@ -77,6 +78,8 @@ class _RiskAwareRolloutMixin:
         self.risk = np.zeros(shape, dtype=np.float32)
         self.iqr = np.zeros(shape, dtype=np.float32)
         self.rnd_error = np.zeros(shape, dtype=np.float32)
+        self._unset_values = th.zeros(self.n_envs)  # stored by SB3's `add`; replaced once the risk is known
+        self._tensors: dict[str, Any] | None = None  # the minibatches' source, made by the first `get`
         super().reset()  # type: ignore[misc]
 
     def add(  # type: ignore[override]
@@ -88,12 +91,16 @@ class _RiskAwareRolloutMixin:
         atoms: th.Tensor,
         log_prob: th.Tensor,
     ) -> None:
-        """Store a step; ``atoms`` are the critic's sorted atoms ``(n_envs, n_quantiles)``.
+        """Store a step; ``atoms`` are the critic's atoms ``(n_envs, n_quantiles)``, in any order.
 
-        The value of the step is set later from the atoms and the state's risk parameter.
+        The value of the step is set later from the sorted atoms and the state's risk parameter.
         """
         self.atoms[self.pos] = atoms.cpu().numpy()
-        super().add(obs, action, reward, episode_start, atoms.mean(dim=-1), log_prob)  # type: ignore[misc]
+        super().add(obs, action, reward, episode_start, self._unset_values, log_prob)  # type: ignore[misc]
+
+    def sort_atoms(self) -> None:
+        """Sort each stored state's atoms in increasing order (once per rollout, rather than per step)."""
+        self.atoms = th.sort(th.from_numpy(self.atoms), dim=-1).values.numpy()
 
     def flat_observations(self) -> np.ndarray | dict[str, np.ndarray]:
         """The stored observations with time and env axes merged (row ``t * n_envs + e``).
@@ -202,12 +209,42 @@ class _RiskAwareRolloutMixin:
         yield from super().get(batch_size)  # type: ignore[misc]
 
     def _get_samples(self, batch_inds: np.ndarray, env: Any = None) -> HuRiRolloutBufferSamples:
-        samples = super()._get_samples(batch_inds)  # type: ignore[misc]
+        """SB3's samples and HuRi's, indexed from the rollout's tensors (:meth:`_sample_tensors`) rather
+        than converted from numpy minibatch by minibatch."""
+        index = th.as_tensor(batch_inds, device=self.device)  # type: ignore[attr-defined]
+        tensors = self._sample_tensors()
+        observations = tensors.pop("observations")
         return HuRiRolloutBufferSamples(
-            *samples,
-            target_atoms=self.to_torch(self.target_atoms[batch_inds]),  # type: ignore[attr-defined]
-            distortion_weights=self.to_torch(self.distortion_weights[batch_inds]),  # type: ignore[attr-defined]
+            observations={key: obs[index] for key, obs in observations.items()}
+            if isinstance(observations, dict)
+            else observations[index],
+            **{name: tensor[index] for name, tensor in tensors.items()},
         )
+
+    def _sample_tensors(self) -> dict[str, Any]:
+        """Every field a minibatch takes, flattened as ``get`` left it, as a tensor on the buffer's device:
+        made once per rollout (on the CPU they share the arrays' memory) and sliced by each minibatch."""
+        if self._tensors is None:
+            device = self.device  # type: ignore[attr-defined]
+
+            def tensor(array: np.ndarray) -> th.Tensor:
+                return th.as_tensor(array, device=device)
+
+            observations = self.observations  # type: ignore[attr-defined]
+            self._tensors = dict(
+                observations={key: tensor(obs) for key, obs in observations.items()}
+                if isinstance(observations, dict)
+                else tensor(observations),
+                # float32 as SB3's samples (a MultiBinary action would not convert)
+                actions=tensor(self.actions.astype(np.float32, copy=False)),  # type: ignore[attr-defined]
+                old_values=tensor(self.values.reshape(-1)),
+                old_log_prob=tensor(self.log_probs.reshape(-1)),  # type: ignore[attr-defined]
+                advantages=tensor(self.advantages.reshape(-1)),
+                returns=tensor(self.returns.reshape(-1)),
+                target_atoms=tensor(self.target_atoms),
+                distortion_weights=tensor(self.distortion_weights),
+            )
+        return dict(self._tensors)
 
 
 class HuRiRolloutBuffer(_RiskAwareRolloutMixin, RolloutBuffer):

@@ -34,7 +34,7 @@ from sb3_huri.huri.hyperparameters import (
 from sb3_huri.huri.methods import DEFAULT_METHOD
 from sb3_huri.huri.policies import ACTOR_KEY, HuRiPolicy, MlpPolicy, MultiInputPolicy
 from sb3_huri.huri.risk import RiskAssessment, RiskModel, RiskReading
-from sb3_huri.huri.saves import fitting_optimizer_state, upgrade_saved_attributes
+from sb3_huri.huri.saves import NETWORK_DEFAULTS, fitting_optimizer_state, upgrade_saved_attributes
 
 SelfHuRiPPO = TypeVar("SelfHuRiPPO", bound="HuRiPPO")
 
@@ -50,8 +50,12 @@ class HuRiPPO(OnPolicyAlgorithm):
     The paper's methods are presets (``method``); every knob below overrides its preset. The risk arguments
     (``method`` to ``td_level``) make one :class:`~sb3_huri.huri.risk.RiskModel`,
     ``model.risk_model``, where they are checked; the model keeps its settings as attributes of the same
-    names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others. Defaults are the paper's
-    Table 3 (sized for thousands of GPU environments: see the docs for CPU settings).
+    names, which it saves. ``sb3_huri.huri.hyperparameters`` checks the others.
+
+    Defaults: what HuRiPPO shares with SB3's ``PPO`` (rollout and minibatch sizes, epochs, learning rate,
+    coefficients, networks) defaults to PPO's, so that swapping the class swaps the critic and nothing
+    else; HuRi's own arguments (atoms, band, RND, SR(lambda), loss coefficients) default to the paper's.
+    The paper's Table 3 (sized for thousands of GPU environments) is ``hyperparams/huri_paper.yml``.
 
     :param policy: ``"MlpPolicy"`` / ``"MultiInputPolicy"`` (both :class:`HuRiPolicy`, which handles ``Box``
         and ``Dict`` observations) or a :class:`HuRiPolicy` subclass
@@ -59,8 +63,10 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param learning_rate: learning rate, a float or a schedule of the progress remaining (from 1 to 0);
         with ``desired_kl``, the initial learning rate
     :param n_steps: steps per environment per rollout
-    :param batch_size: minibatch size; ``None`` splits each rollout into ``n_minibatches`` minibatches
-    :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None``
+    :param batch_size: minibatch size, as in PPO; ``None`` (default): 64, PPO's, unless ``n_minibatches``
+        is given
+    :param n_minibatches: minibatches per epoch, the rollout split evenly (rsl_rl's way of sizing them);
+        an alternative to ``batch_size``, not to be given with it
     :param n_epochs: epochs over each rollout
     :param gamma: discount factor
     :param gae_lambda: GAE parameter
@@ -131,18 +137,18 @@ class HuRiPPO(OnPolicyAlgorithm):
         self,
         policy: str | type[HuRiPolicy],
         env: GymEnv | str,
-        learning_rate: float | Schedule = 2e-4,
-        n_steps: int = 60,
+        learning_rate: float | Schedule = 3e-4,
+        n_steps: int = 2048,
         batch_size: int | None = None,
-        n_minibatches: int = 4,
-        n_epochs: int = 8,
+        n_minibatches: int | None = None,
+        n_epochs: int = 10,
         gamma: float = 0.99,
         gae_lambda: float = 0.95,
         clip_range: float | Schedule = 0.2,
         normalize_advantage: bool = True,
-        ent_coef: float = 0.01,
-        vf_coef: float = 1.0,
-        max_grad_norm: float = 1.0,
+        ent_coef: float = 0.0,
+        vf_coef: float = 0.5,
+        max_grad_norm: float = 0.5,
         use_sde: bool = False,
         sde_sample_freq: int = -1,
         target_kl: float | None = None,
@@ -201,7 +207,6 @@ class HuRiPPO(OnPolicyAlgorithm):
         if isinstance(policy, str):
             # Both aliases name the same class: resolving it here lets "MlpPolicy" take Dict observations.
             policy = self._get_policy_from_name(policy)  # type: ignore[assignment]
-
         super().__init__(
             policy, env, learning_rate=learning_rate, n_steps=n_steps, gamma=gamma, gae_lambda=gae_lambda,
             ent_coef=ent_coef, vf_coef=vf_coef, max_grad_norm=max_grad_norm, use_sde=use_sde,
@@ -215,7 +220,8 @@ class HuRiPPO(OnPolicyAlgorithm):
         self.batch_size = batch_size
         self.n_epochs, self.clip_range = n_epochs, clip_range
         self.normalize_advantage, self.target_kl = normalize_advantage, target_kl
-        if _init_setup_model:
+        if _init_setup_model:  # a new model (`load` builds one without, then restores the saved values)
+            self.network_defaults = NETWORK_DEFAULTS
             self._setup_model()
 
     def _set_risk_model(self, risk_model: RiskModel) -> None:
@@ -304,9 +310,9 @@ class HuRiPPO(OnPolicyAlgorithm):
     ) -> bool:
         """Fill the buffer with ``n_rollout_steps`` steps per env, then assess every state's risk.
 
-        Like SB3's loop, except that the critic's atoms are stored sorted, and that time-outs are
-        collected and bootstrapped at the end of the rollout in one batch, because their value depends
-        on the risk parameter of the final state.
+        Like SB3's loop, except that the critic's atoms are stored as they come and sorted at the end of
+        the rollout in one batch, and that time-outs are collected and bootstrapped there in one batch too,
+        because their value depends on the risk parameter of the final state.
         """
         assert self._last_obs is not None, "No previous observation was provided"
         self.policy.set_training_mode(False)
@@ -323,7 +329,6 @@ class HuRiPPO(OnPolicyAlgorithm):
             with th.no_grad():
                 obs_tensor = obs_as_tensor(self._last_obs, self.device)  # type: ignore[arg-type]
                 actions, atoms, log_probs = self.policy(obs_tensor)
-                atoms = th.sort(atoms, dim=-1).values
             actions = actions.cpu().numpy()
             clipped_actions = actions
             if isinstance(self.action_space, spaces.Box):
@@ -367,6 +372,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         in one batch. The RND input statistics are updated with the rollout before its novelty is measured.
         """
         n_rollout = buffer.buffer_size * buffer.n_envs
+        buffer.sort_atoms()
         extra_obs = [last_obs] + [add_batch_axis(obs) for _, _, obs in time_outs]
         with th.no_grad():
             extra = obs_as_tensor(concatenate_observations(extra_obs), self.device)

@@ -30,7 +30,7 @@ class UnnormalizedRewardWarning(UserWarning):
 RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "n_steps": (lambda v: v >= 1, "an integer >= 1"),
     "n_epochs": (lambda v: v >= 1, "an integer >= 1"),
-    "n_minibatches": (lambda v: v >= 1, "an integer >= 1"),
+    "n_minibatches": (lambda v: v is None or v >= 1, "None or an integer >= 1"),
     "gamma": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
     "gae_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
     "sr_lambda": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
@@ -64,21 +64,38 @@ def check_action_space(action_space: spaces.Space) -> None:
         )
 
 
-def resolve_batch_size(batch_size: int | None, n_minibatches: int, rollout_size: int) -> int:
-    """The minibatch size: given, or the rollout split into ``n_minibatches``; checked against the rollout.
+DEFAULT_BATCH_SIZE = 64
+"""The minibatch size when neither ``batch_size`` nor ``n_minibatches`` is given: SB3's PPO default."""
 
-    A size that does not divide the rollout is allowed, with a warning (pointed at HuRiPPO's caller): each
-    epoch then ends with a smaller minibatch.
+
+def resolve_batch_size(batch_size: int | None, n_minibatches: int | None, rollout_size: int) -> int:
+    """The minibatch size: ``batch_size`` as PPO reads it, or the rollout split into ``n_minibatches``, or
+    ``DEFAULT_BATCH_SIZE``; checked against the rollout as PPO checks it. ValueError if both are given.
+
+    A minibatch size that does not divide the rollout gives a warning, as in PPO: each epoch then ends
+    with a smaller minibatch (or, larger than the rollout, is one minibatch of the whole rollout).
     """
-    if batch_size is None:
+    if batch_size is not None and n_minibatches is not None:
+        raise ValueError(
+            f"give batch_size (the minibatch size, as in PPO) or n_minibatches (minibatches per epoch), "
+            f"not both: got batch_size={batch_size} and n_minibatches={n_minibatches}"
+        )
+    if n_minibatches is not None:
         if n_minibatches > rollout_size:
             raise ValueError(
                 f"n_minibatches must be at most n_steps * n_envs = {rollout_size}, got {n_minibatches}"
             )
         return -(-rollout_size // n_minibatches)
-    if not 1 < batch_size <= rollout_size:
-        raise ValueError(f"batch_size must be in [2, n_steps * n_envs = {rollout_size}], got {batch_size}")
-    if rollout_size % batch_size:
+    batch_size = DEFAULT_BATCH_SIZE if batch_size is None else batch_size
+    if batch_size <= 1:
+        raise ValueError(f"batch_size must be > 1 (normalized advantages need two samples), got {batch_size}")
+    if batch_size > rollout_size:
+        warnings.warn(
+            f"batch_size={batch_size} is larger than the rollout, n_steps * n_envs = {rollout_size}: "
+            f"each epoch is one minibatch of {rollout_size} samples",
+            stacklevel=3,
+        )
+    elif rollout_size % batch_size:
         warnings.warn(
             f"batch_size={batch_size} does not divide the rollout size n_steps * n_envs = {rollout_size}: "
             f"each epoch ends with a minibatch of {rollout_size % batch_size} samples",

@@ -20,7 +20,6 @@ from torch import nn
 from sb3_huri.common.rnd import RandomNetworkDistillation
 
 ACTOR_KEY = "policy"
-DEFAULT_NET_ARCH = (512, 256, 128)
 
 
 class PolicyCriticExtractor(BaseFeaturesExtractor):
@@ -89,10 +88,10 @@ class AsymmetricMlpExtractor(nn.Module):
 class HuRiPolicy(ActorCriticPolicy):
     """Actor-critic policy with an asymmetric observation split and a quantile critic.
 
-    Takes every argument of SB3's ``ActorCriticPolicy``, with these defaults changed to the paper's:
-    ``net_arch=[512, 256, 128]`` for both networks and ELU activations (the rsl_rl stack the paper trains
-    with). The value outputs (``forward``, ``evaluate_actions``, ``predict_values``) have shape
-    ``(batch, n_quantiles)``: unsorted atoms of the return distribution.
+    Takes every argument of SB3's ``ActorCriticPolicy``, with its defaults (``[64, 64]`` for each network,
+    ``tanh``); the paper's networks are ``net_arch=[512, 256, 128], activation_fn=nn.ELU`` (the rsl_rl stack
+    it trains with, ``hyperparams/huri_paper.yml``). The value outputs (``forward``, ``evaluate_actions``,
+    ``predict_values``) have shape ``(batch, n_quantiles)``: unsorted atoms of the return distribution.
 
     :param n_quantiles: number of critic atoms; 1 gives a scalar value head (usable by SB3's ``PPO``)
     :param rnd_kwargs: keyword arguments of a :class:`RandomNetworkDistillation` over the critic's input,
@@ -107,7 +106,7 @@ class HuRiPolicy(ActorCriticPolicy):
         action_space: spaces.Space,
         lr_schedule: Schedule,
         net_arch: list[int] | dict[str, list[int]] | None = None,
-        activation_fn: type[nn.Module] = nn.ELU,
+        activation_fn: type[nn.Module] = nn.Tanh,
         n_quantiles: int = 64,
         rnd_kwargs: dict[str, Any] | None = None,
         critic_param_group: bool = False,
@@ -124,8 +123,6 @@ class HuRiPolicy(ActorCriticPolicy):
         if features_extractor_class is None:
             is_dict = isinstance(observation_space, spaces.Dict)
             features_extractor_class = PolicyCriticExtractor if is_dict else FlattenExtractor
-        if net_arch is None:
-            net_arch = dict(pi=list(DEFAULT_NET_ARCH), vf=list(DEFAULT_NET_ARCH))
         super().__init__(
             observation_space,
             action_space,
