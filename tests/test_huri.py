@@ -220,6 +220,7 @@ def test_save_load_round_trip_keeps_everything_and_learning_continues(tmp_path):
     np.testing.assert_array_equal(loaded.policy.rnd.obs_rms.var, model.policy.rnd.obs_rms.var)
     state_dicts_equal(model.policy.optimizer.state_dict(), loaded.policy.optimizer.state_dict())
     state_dicts_equal(model.policy.rnd.optimizer.state_dict(), loaded.policy.rnd.optimizer.state_dict())
+    assert loaded.policy.rnd.optimizer.param_groups[0]["fused"]  # the saved settings do not unfuse its step
     np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0], actions)
     assert (loaded.method, loaded.n_quantiles, loaded.use_rnd, loaded.batch_size) == ("huri", 64, True, 16)
 

@@ -18,6 +18,7 @@ from sb3_huri.common import (
     sr_lambda_targets,
     wang_weights,
 )
+from sb3_huri.common.quantiles import NUMPY_ORDER_ROWS, sorted_atoms
 
 
 def pairwise_energy_distance(x: th.Tensor, y: th.Tensor) -> th.Tensor:
@@ -27,6 +28,23 @@ def pairwise_energy_distance(x: th.Tensor, y: th.Tensor) -> th.Tensor:
         return (a[..., :, None] - b[..., None, :]).abs().mean(dim=(-1, -2))
 
     return 2 * mean_abs(x, y) - mean_abs(x, x) - mean_abs(y, y)
+
+
+# --- sorting atoms ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("rows", [8, NUMPY_ORDER_ROWS + 3])
+def test_sorted_atoms_are_torchs_sort_and_carry_each_atoms_gradient(rows):
+    """Both paths (torch's sort for a few rows, numpy's order from ``NUMPY_ORDER_ROWS`` on) give torch's
+    sorted values, and the gradient of a weighted sum of the sorted atoms lands on the atom each came from."""
+    atoms = th.randn(rows, 64, dtype=th.float64, requires_grad=True)
+    weights = th.rand(64, dtype=th.float64)
+    ours = sorted_atoms(atoms)
+    reference = th.sort(atoms, dim=-1).values
+    assert th.equal(ours, reference)
+    (ours_grad,) = th.autograd.grad((ours * weights).sum(), atoms)
+    (reference_grad,) = th.autograd.grad((reference * weights).sum(), atoms)
+    assert th.equal(ours_grad, reference_grad)
 
 
 # --- energy distance ---------------------------------------------------------------------------------

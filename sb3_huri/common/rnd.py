@@ -25,7 +25,7 @@ class RandomNetworkDistillation(nn.Module):
     the state becomes familiar. Unnormalized, the mean error of a 16-output target on standardized inputs is
     a few thousandths, and ``tanh`` of it (paper eq. 10) is negligible next to the IQR's risk levels -1, 0, 1.
     Both sets of statistics are part of ``state_dict()`` (as the module's extra state) and the predictor has
-    its own Adam optimizer (``self.optimizer``), so they travel with a saved model.
+    its own Adam optimizer (``self.optimizer``, fused), so they travel with a saved model.
 
     :param input_dim: size of the (flat) critic state
     :param target_net_arch: hidden layer sizes of the target network (paper: [32, 32])
@@ -60,7 +60,8 @@ class RandomNetworkDistillation(nn.Module):
         self.obs_rms = RunningMeanStd(shape=(input_dim,))
         # Starts at unit variance: until the first update the error is the mean over the outputs.
         self.target_rms = RunningMeanStd(shape=(output_dim,))
-        self.optimizer = th.optim.Adam(self.predictor.parameters(), lr=learning_rate)
+        # Fused: one kernel for the step's tensors, about twice as fast a fit for networks this small.
+        self.optimizer = th.optim.Adam(self.predictor.parameters(), lr=learning_rate, fused=True)
 
     def update_normalizer(self, inputs: th.Tensor) -> None:
         """Add a batch of critic states ``(B, input_dim)`` to the input and target-output statistics."""
@@ -97,7 +98,7 @@ class RandomNetworkDistillation(nn.Module):
         normalized = self.normalize(inputs.detach())
         with th.no_grad():  # the target is frozen: its outputs are computed once, not per minibatch
             targets = self.target(normalized)
-        losses = []
+        losses: list[th.Tensor] = []
         for _ in range(n_epochs):
             losses = []
             for indices in th.randperm(len(normalized), device=normalized.device).split(batch_size):
@@ -105,10 +106,16 @@ class RandomNetworkDistillation(nn.Module):
                 self.optimizer.zero_grad()
                 loss.backward()
                 self.optimizer.step()
-                losses.append(loss.item())
+                losses.append(loss.detach())
         # Leave no gradient behind: the algorithm clips the gradient norm of all the policy's parameters.
         self.optimizer.zero_grad(set_to_none=True)
-        return float(np.mean(losses))
+        return float(th.stack(losses).mean())
+
+    def fuse_optimizer(self) -> None:
+        """Make the predictor's Adam fused again after its state was loaded: ``load_state_dict`` takes the
+        saved settings, and a model saved before the fused step saved ``fused=None``."""
+        for group in self.optimizer.param_groups:
+            group["fused"] = True
 
     def get_extra_state(self) -> dict[str, th.Tensor]:
         state = {}

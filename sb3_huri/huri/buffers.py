@@ -100,7 +100,7 @@ class _RiskAwareRolloutMixin:
 
     def sort_atoms(self) -> None:
         """Sort each stored state's atoms in increasing order (once per rollout, rather than per step)."""
-        self.atoms = th.sort(th.from_numpy(self.atoms), dim=-1).values.numpy()
+        self.atoms.sort(axis=-1)  # numpy's: many times faster than torch's on the CPU for short rows
 
     def flat_observations(self) -> np.ndarray | dict[str, np.ndarray]:
         """The stored observations with time and env axes merged (row ``t * n_envs + e``).
@@ -214,11 +214,15 @@ class _RiskAwareRolloutMixin:
         index = th.as_tensor(batch_inds, device=self.device)  # type: ignore[attr-defined]
         tensors = self._sample_tensors()
         observations = tensors.pop("observations")
+
+        def rows(tensor: th.Tensor) -> th.Tensor:  # `index_select`: 2-3x faster than `tensor[index]` here
+            return th.index_select(tensor, 0, index)
+
         return HuRiRolloutBufferSamples(
-            observations={key: obs[index] for key, obs in observations.items()}
+            observations={key: rows(obs) for key, obs in observations.items()}
             if isinstance(observations, dict)
-            else observations[index],
-            **{name: tensor[index] for name, tensor in tensors.items()},
+            else rows(observations),
+            **{name: rows(tensor) for name, tensor in tensors.items()},
         )
 
     def _sample_tensors(self) -> dict[str, Any]:

@@ -19,7 +19,7 @@ from sb3_huri.common.expectation import expectation_loss
 from sb3_huri.common.learning_rate import kl_adaptive_rate, set_learning_rates
 from sb3_huri.common.mirror import NormalizedMirror, env_mirrors, mirror_loss
 from sb3_huri.common.observations import add_batch_axis, concatenate_observations, to_numpy
-from sb3_huri.common.quantiles import interquartile_range
+from sb3_huri.common.quantiles import interquartile_range, sorted_atoms
 from sb3_huri.common.rnd import with_rnd_training
 from sb3_huri.huri.buffers import HuRiDictRolloutBuffer, HuRiRolloutBuffer, HuRiRolloutBufferSamples
 from sb3_huri.huri.hyperparameters import (
@@ -284,12 +284,15 @@ class HuRiPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
     ) -> None:
         """SB3's, and a model saved with one learning rate also loads with ``critic_learning_rate``, its Adam
-        state dropped (``sb3_huri.huri.saves.fitting_optimizer_state``)."""
+        state dropped (``sb3_huri.huri.saves.fitting_optimizer_state``); the RND predictor's Adam stays
+        fused whatever the save holds."""
         if isinstance(load_path_or_dict, dict) and self.policy.critic_param_group:
             fitting = fitting_optimizer_state(load_path_or_dict, self.policy.optimizer)
             exact_match = exact_match and fitting is load_path_or_dict
             load_path_or_dict = fitting
         super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
+        if self.policy.rnd is not None:
+            self.policy.rnd.fuse_optimizer()
 
     def _excluded_save_params(self) -> list[str]:
         # `_mirrors`: rebuilt by each update from the env; `risk_model`: by `_setup_model` from its settings
@@ -556,7 +559,7 @@ class HuRiPPO(OnPolicyAlgorithm):
         """
         if not self.risk_model.distributional:
             return F.mse_loss(data.returns, outputs.flatten())
-        atoms = th.sort(outputs, dim=-1).values
+        atoms = sorted_atoms(outputs)
         quantile_loss = energy_distance(atoms, data.target_atoms, presorted=True).mean()  # targets: sorted
         mean_loss = expectation_loss(atoms, data.target_atoms, data.distortion_weights, self.expectation_loss)
         logs["quantile"].append(quantile_loss.item())

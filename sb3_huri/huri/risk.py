@@ -18,7 +18,7 @@ import numpy as np
 import torch as th
 
 from sb3_huri.common.distortion import DISTORTIONS, distortion_weights
-from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level
+from sb3_huri.common.quantiles import interquartile_range, iqr_risk_level, sorted_atoms
 from sb3_huri.common.risk_gae import TD_LEVELS
 from sb3_huri.huri.methods import DEFAULT_IQR_RISK_LEVELS, METHODS
 
@@ -284,7 +284,7 @@ class RiskModel:
         :param outputs: critic outputs, shape ``(B, n_quantiles)``, in any order
         :param rnd_error: RND novelty per state ``(B,)``; ``None`` without RND (read as zeros)
         """
-        atoms = th.sort(outputs, dim=-1).values
+        atoms = sorted_atoms(outputs)
         iqr = interquartile_range(atoms)
         if rnd_error is None:
             rnd_error = th.zeros_like(iqr)
