@@ -285,3 +285,12 @@ def env_kind(env: str) -> str:
 def is_standard(env: str) -> bool:
     """Whether the grid trains ``env`` as a standard task (``grid.standard``) rather than a Zerith env."""
     return env_kind(env) == "standard"
+
+
+def shown_path(path: Path) -> str:
+    """`path` as a report names it: relative to the working folder when inside it (a report committed with
+    its runs then names them as a clone sees them), else absolute."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path.resolve())

@@ -37,6 +37,7 @@ from sb3_huri.experiments.grid.layout import (
     load_settings,
     read_status,
     run_folder,
+    shown_path,
 )
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.runner.curve import final_return, read_curve
@@ -194,7 +195,7 @@ def _header_section(out: Path, settings: Settings, results: list[RunResult]) -> 
     lines = [
         f"# Experiment report: {settings.env}",
         "",
-        f"Folder `{out}`: {len(results)} runs ({', '.join(methods)}; seeds "
+        f"Folder `{shown_path(out)}`: {len(results)} runs ({', '.join(methods)}; seeds "
         f"{', '.join(str(s) for s in sorted({r.seed for r in results}))}), {settings.timesteps} training "
         f"steps each, evaluated on {settings.eval.episodes} episodes of {settings.eval.episode_steps} steps "
         f"per case (seed {settings.eval.seed}). Means ± 95% confidence intervals across seeds (Student's t; "

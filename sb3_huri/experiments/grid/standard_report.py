@@ -32,6 +32,7 @@ from sb3_huri.experiments.grid.layout import (
     load_settings,
     read_status,
     run_folder,
+    shown_path,
 )
 from sb3_huri.experiments.grid.standard import RETURN_CASE
 from sb3_huri.experiments.statistics import improvement_interval, iqm_interval, mean_ci
@@ -133,7 +134,7 @@ def _header(out: Path, tasks: list[Task]) -> list[str]:
     lines = [
         f"# Standard tasks: {', '.join(t.settings.env for t in tasks)}",
         "",
-        f"Folder `{out}`: {names}. Final return: the mean return of each run's final model over "
+        f"Folder `{shown_path(out)}`: {names}. Final return: the mean return of each run's final model over "
         f"{first.eval.episodes} deterministic episodes (seed {first.eval.seed}, the same for every run; the "
         "env's own time limit; the normalizer frozen, rewards unnormalized). Per method over seeds: mean ± "
         "95% confidence interval (Student's t); IQM (interquartile mean: the mean without the lowest and "
