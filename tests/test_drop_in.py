@@ -93,13 +93,13 @@ def test_shared_arguments_mean_what_they_mean_in_ppo(kwargs, method):
 
 
 def test_minibatches_by_count_are_an_alternative_to_their_size():
-    """``n_minibatches`` splits the rollout evenly (the paper's presets use it); with ``batch_size`` too it
-    is refused, naming both, rather than one silently winning."""
+    """``n_minibatches`` splits the rollout evenly (the paper's presets use it); ``batch_size``, PPO's knob,
+    wins when both are given (an RL Zoo override of a preset that splits its rollouts)."""
     env = gym.make("Pendulum-v1")
     assert HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=256, n_minibatches=4).batch_size == 64
     assert HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=256).batch_size == 64
-    with pytest.raises(ValueError, match=r"batch_size .* or n_minibatches .* not both"):
-        HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=256, batch_size=32, n_minibatches=4)
+    both = HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=256, batch_size=32, n_minibatches=4)
+    assert both.batch_size == 32
     with pytest.warns(UserWarning, match="does not divide the rollout"):
         HuRiPPO("MlpPolicy", env, method="huri-baseline", n_steps=100, batch_size=64)
 

@@ -307,7 +307,6 @@ def test_cuda_device():
         (dict(cvar_alpha=0.0), "cvar_alpha"),
         (dict(cvar_alpha=1.2, method="huri-cvar0.5"), "cvar_alpha"),
         (dict(batch_size=1), "batch_size"),
-        (dict(batch_size=16, n_minibatches=4), "n_minibatches"),
         (dict(n_minibatches=200), "n_minibatches"),
         (dict(gamma=1.5), "gamma"),
         (dict(method="huri-baseline", use_rnd=True), "use_rnd"),

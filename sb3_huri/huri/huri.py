@@ -66,7 +66,7 @@ class HuRiPPO(OnPolicyAlgorithm):
     :param batch_size: minibatch size, as in PPO; ``None`` (default): 64, PPO's, unless ``n_minibatches``
         is given
     :param n_minibatches: minibatches per epoch, the rollout split evenly (rsl_rl's way of sizing them);
-        an alternative to ``batch_size``, not to be given with it
+        used when ``batch_size`` is ``None``
     :param n_epochs: epochs over each rollout
     :param gamma: discount factor
     :param gae_lambda: GAE parameter

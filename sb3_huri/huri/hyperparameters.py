@@ -69,18 +69,15 @@ DEFAULT_BATCH_SIZE = 64
 
 
 def resolve_batch_size(batch_size: int | None, n_minibatches: int | None, rollout_size: int) -> int:
-    """The minibatch size: ``batch_size`` as PPO reads it, or the rollout split into ``n_minibatches``, or
-    ``DEFAULT_BATCH_SIZE``; checked against the rollout as PPO checks it. ValueError if both are given.
+    """The minibatch size: ``batch_size`` as PPO reads it, else the rollout split into ``n_minibatches``,
+    else ``DEFAULT_BATCH_SIZE``; checked against the rollout as PPO checks it. ``batch_size`` is the primary
+    knob: given, it wins over ``n_minibatches`` (as ``rl_zoo3 train --hyperparams batch_size:64`` overrides
+    a preset that splits its rollouts).
 
     A minibatch size that does not divide the rollout gives a warning, as in PPO: each epoch then ends
     with a smaller minibatch (or, larger than the rollout, is one minibatch of the whole rollout).
     """
-    if batch_size is not None and n_minibatches is not None:
-        raise ValueError(
-            f"give batch_size (the minibatch size, as in PPO) or n_minibatches (minibatches per epoch), "
-            f"not both: got batch_size={batch_size} and n_minibatches={n_minibatches}"
-        )
-    if n_minibatches is not None:
+    if batch_size is None and n_minibatches is not None:
         if n_minibatches > rollout_size:
             raise ValueError(
                 f"n_minibatches must be at most n_steps * n_envs = {rollout_size}, got {n_minibatches}"
