@@ -21,7 +21,7 @@ written in RL Zoo's layout (`<log-folder>/<algo>/Zerith1-v0_<id>/Zerith1-v0.zip`
     python examples/watch_zerith.py logs/huri/Zerith1-v0_1
 
 The trainer is `sb3_huri.runner.train_run`, the one the training campaign uses
-(`python -m sb3_huri.experiments campaign`). At the first rollout boundary past every `--checkpoint-freq`
+(`python -m study campaign`). At the first rollout boundary past every `--checkpoint-freq`
 steps and at the end, the run folder gets its newest checkpoint: model, normalizer, random states,
 curriculum stage, terrain levels and the sessions' wall time, and `curve.csv` a row per rollout;
 `<run>/checkpoints/` keeps a copy every `--keep-every` steps, and `--robustness-every` adds a row of

@@ -15,7 +15,7 @@ An agent is a run folder in RL Zoo's layout (as written by `examples/train_zerit
 `<env id>.zip` and `<env id>/vecnormalize.pkl`, the env id `Zerith1-v0` or `Go2Like-v0`. The policy is
 deterministic (and `nominal` randomizes nothing, so its episodes are all the same). Each episode prints its
 length, whether the robot fell, its mean forward velocity and its mean forward-velocity error.
-`benchmarks/eval_agents.py` evaluates agents on many episodes and every scenario.
+`study/scripts/eval_agents.py` evaluates agents on many episodes and every scenario.
 """
 
 from __future__ import annotations

@@ -251,10 +251,10 @@ def test_distorted_expectation_loss_is_a_spread_penalty_and_the_target_one_is_no
 
 @pytest.mark.parametrize(("reading", "low", "high"), [("target", 0.96, 1.04), ("distorted", 0.0, 0.88)])
 def test_fitted_spread_of_a_known_distribution_under_each_reading(reading, low, high):
-    # sb3_huri.experiments.analyses.expectation_fit (benchmarks/bench_expectation_loss.py): free atoms
+    # study.analyses.expectation_fit (study/scripts/expectation_loss.py): free atoms
     # fitted to samples of N(2, 1.5^2) with the energy distance plus 0.05 x the expectation loss at beta = 1
     # (the paper's coefficient).
-    from sb3_huri.experiments.analyses.expectation_fit import fit_known_distribution
+    from study.analyses.expectation_fit import fit_known_distribution
 
     mean, std = fit_known_distribution(reading, beta=1.0, coef=0.05, batch=16, steps=1000, seed=1)
     assert low * 1.5 <= std <= high * 1.5

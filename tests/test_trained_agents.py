@@ -16,8 +16,8 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from sb3_huri.experiments.analyses import agents
 from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, gait_measures
+from study.analyses import agents
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"

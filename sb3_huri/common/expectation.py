@@ -4,7 +4,7 @@ Eq. 5 is ``MSE(E_tau[Z_theta(tau)], E_tau[Z_theta(beta(tau))])``: the mean of th
 against its own distorted mean. Read literally (``"distorted"``) it compares two functionals of the *same*
 atoms, so its minimum is a distribution whose distorted mean equals its mean, i.e. (for ``beta != 0``) a
 point mass: it also penalizes the spread of the prediction, and with the energy loss it shrinks the fitted
-distribution (``benchmarks/bench_expectation_loss.py``: 0.82 of the true standard deviation at ``beta = 1``
+distribution (``study/scripts/expectation_loss.py``: 0.82 of the true standard deviation at ``beta = 1``
 and coefficient 0.05). The paper's text describes the loss as the MSE "between the target expectation and
 the expected ... after implementing the risk distortion", a loss against the *target*. The ``"target"``
 reading matches the predicted mean to the mean of the target atoms, PPO's value loss on the critic's

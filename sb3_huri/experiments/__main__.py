@@ -4,9 +4,6 @@
         --methods huri huri-baseline huri-cvar0.5 huri-no-rnd huri-no-iqr huri-cvar \\
         --seeds 0 1 2 3 4 --timesteps 4000000 --eval-episodes 10 --out results/zerith
     python -m sb3_huri.experiments report results/zerith
-    python -m sb3_huri.experiments campaign [--status] [--max-wall-minutes 150]
-    python -m sb3_huri.experiments results
-
 
 ``run`` trains every method x seed (RL Zoo layout per run, the env's preset and its curriculum, the batched
 env) and evaluates each under the paper's protocol; stopped at any point, the same command continues every
@@ -15,10 +12,6 @@ Ray tasks on the cluster of ``RAY_ADDRESS`` (or ``--ray-address``), with the out
 machines. ``report`` writes ``DIR/report.md`` with the tables, figures and the paper's numbers. A standard
 Gymnasium task (``--env Walker2d-v5``) trains its preset as RL Zoo does and is evaluated on its return; its
 ``report`` (of a task's folder, or a folder of them) gives means, IQMs and the probability of beating PPO.
-
-``campaign`` trains the long runs of the queue ``runs/campaign.yml`` in the background, stretch after stretch,
-resumable (``sb3_huri.experiments.campaign.scheduler``); ``results`` writes ``docs/results.md`` and its
-figures from the queue's run folders (``sb3_huri.experiments.campaign.results``).
 """
 
 from __future__ import annotations
@@ -27,8 +20,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from sb3_huri.experiments.campaign.queue import DEFAULT_QUEUE
-from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.experiments.grid.layout import EvalSettings
 from sb3_huri.runner.files import RunError
 
@@ -72,57 +63,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     report = commands.add_parser("report", help="write DIR/report.md and the figures")
     report.add_argument("out", type=Path, help="experiment folder (or a folder of standard tasks' ones)")
-    campaign = commands.add_parser("campaign", help="train the campaign's queue (resumable), or --status")
-    campaign.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
-    campaign.add_argument("--slots", type=int, default=None, help="entries at once (default: one per core)")
-    campaign.add_argument(
-        "--max-wall-minutes", type=float, default=None, help="stop, with checkpoints, after"
-    )
-    campaign.add_argument("--status", action="store_true", help="print where every entry stands, and exit")
-    campaign.add_argument("--entry", default=None, help="train and evaluate this one entry in this process")
-    campaign.add_argument(
-        "--parent",
-        type=int,
-        default=None,
-        help="with --entry: stop, with a checkpoint, when process PARENT ends",
-    )
-    results = commands.add_parser("results", help="write docs/results.md and its figures from the runs")
-    results.add_argument("--queue", type=Path, default=DEFAULT_QUEUE, help="the queue file")
-    results.add_argument("--out", type=Path, default=Path("docs/results.md"), help="the page to write")
     return parser
-
-
-def _campaign(args: argparse.Namespace) -> int:
-    """The ``campaign`` command: status, one entry, or the whole queue; 0 when nothing is left to do."""
-    from sb3_huri.experiments.campaign.child import run_child
-    from sb3_huri.experiments.campaign.queue import load_queue
-    from sb3_huri.experiments.campaign.scheduler import run_campaign, status_table
-
-    max_wall_s = None if args.max_wall_minutes is None else 60.0 * args.max_wall_minutes
-    if args.status:
-        print(status_table(args.queue))
-        return 0
-    if args.entry is not None:
-        entries = {entry.name: entry for entry in load_queue(args.queue)}
-        if args.entry not in entries:
-            raise ExperimentError(f"no entry {args.entry!r} in {args.queue}; entries: {', '.join(entries)}")
-        return run_child(entries[args.entry], max_wall_s, args.parent)
-    unfinished = run_campaign(args.queue, args.slots, max_wall_s)
-    print(f"{len(unfinished)} entries unfinished" if unfinished else "every entry is done")
-    return 1 if unfinished else 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0: every run done, 1: some not, 2: a usage error)."""
     args = _parser().parse_args(argv)
     try:
-        if args.command == "campaign":
-            return _campaign(args)
-        if args.command == "results":
-            from sb3_huri.experiments.campaign.results import write_results
-
-            print(f"wrote {write_results(args.queue, args.out)}")
-            return 0
         if args.command == "report":
             from sb3_huri.experiments.grid.report import write_report
 

@@ -18,7 +18,7 @@ return quantiles, the risk parameter beta and the interquartile range): ``beta``
 every robot-step, and robot 0's trace, step by step, with the external force it felt (the paper's Fig. 5).
 With ``risk_states=True`` every robot-step's assessment is kept too (``RiskStates``: the risk level, its IQR
 and RND parts, the IQR and the RND novelty), for statistics over all the states an agent visits
-(``sb3_huri.experiments.analyses.risk_levels``).
+(``study.analyses.risk_levels``).
 
 ``PROTOCOL`` is the paper's evaluation: the six disturbance scenarios of its Table 1
 (survival), ``load``, ``friction``, ``load-friction`` and ``uneven`` (velocity tracking, its Fig. 4), the

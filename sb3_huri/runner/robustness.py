@@ -7,7 +7,7 @@ push from the side), ``nominal@1.0`` and ``nominal@0.5``, each on the same ``epi
 (``curve.csv``), the hardware it trained on (``state.json``), the episodes per case, each case's survival,
 the Table-1 mean and the mean forward velocity at 1 m/s. The trainer writes a row every few million steps
 while it trains (``sb3_huri.runner.training.RobustnessSchedule``);
-``sb3_huri.experiments.analyses.robustness_curves`` (``benchmarks/robustness_curve.py``) evaluates kept
+``study.analyses.robustness_curves`` (``study.scripts.robustness_curve``) evaluates kept
 checkpoints afterwards.
 """
 
