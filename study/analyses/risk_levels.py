@@ -43,13 +43,13 @@ from typing import Any
 
 import numpy as np
 import yaml
-from zerith_gym.scenarios import TEST_COMMAND
 
 from sb3_huri.experiments.errors import ExperimentError
 from sb3_huri.runner.evaluation import PLANE_CASE, RiskStates, evaluate, parse_case
 from sb3_huri.runner.files import read_json, resumed_record, write_json
 from sb3_huri.runner.record import EVALUATIONS
 from zerith_gym import GO2LIKE_ID, ZERITH1_ID
+from zerith_gym.scenarios import TEST_COMMAND
 
 RISK_LEVELS_SUFFIX = "-risk_levels.json"
 """A checkpoint's risk levels are in its run's ``evaluations/`` folder, in ``<steps>-risk_levels.json``."""

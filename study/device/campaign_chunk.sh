@@ -14,7 +14,7 @@
 # The working tree and the wheels travel together, 64 MiB at most: move other run folders out of the tree
 # for the call when the committed runs make it larger.
 set -uo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 entry=${1:?usage: bash study/device/campaign_chunk.sh ENTRY [MINUTES]}
 minutes=${2:-8}
 queue=${QUEUE:-runs/campaign.yml}
@@ -42,13 +42,13 @@ print(os.path.relpath(found[0].run))
 EOF
 ) || exit 2
 { date -u; nproc; "$python" -c "import torch; print('torch', torch.__version__)"; } > "$out/machine.txt" 2>&1
-"$python" -m sb3_huri.experiments campaign --queue "$queue" --entry "$entry" --max-wall-minutes "$minutes" \
+"$python" -m study campaign --queue "$queue" --entry "$entry" --max-wall-minutes "$minutes" \
     > "$out/train.log" 2>&1
 status=$?
 tar -cf "$out/run.tar" --exclude=checkpoints --exclude=.previous --exclude=.lock --exclude=.failure.json "$run" || exit 3
 tail -n 5 "$out/train.log"
 # The entry's row of the status table: its steps now and its state (train: stopped at the wall-time limit,
 # to go on from its checkpoint; done: trained and evaluated). The training's exit status is 0 only for done.
-"$python" -m sb3_huri.experiments campaign --queue "$queue" --status | grep -E "^(entry|$entry) "
+"$python" -m study campaign --queue "$queue" --status | grep -E "^(entry|$entry) "
 echo "run folder $run packed into $out/run.tar (exit status of the training: $status)"
 exit "$status"

@@ -321,6 +321,7 @@ def _plot_risk(path: Path, traced: Sequence[Evaluated]) -> None:
     """Robot 0's critic value, IQR and beta along its episode per risk case (columns), the pushes' force in
     grey under the push's value."""
     from matplotlib.figure import Figure
+
     from zerith_gym.robot import CONTROL_DT
 
     figure = Figure(figsize=(12, 7.5), layout="constrained")

@@ -21,9 +21,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from zerith_gym.robot import CONTROL_DT
-from zerith_gym.scenarios import TEST_COMMAND
-
 from sb3_huri.runner.files import read_json
 from study.analyses.risk_levels import (
     FALL_WINDOW_STEPS,
@@ -37,6 +34,8 @@ from study.campaign import progress
 from study.campaign.queue import CampaignEntry
 from study.results.markdown import millions
 from study.results.sections import heading
+from zerith_gym.robot import CONTROL_DT
+from zerith_gym.scenarios import TEST_COMMAND
 
 SCRIPT = "study/scripts/risk_levels.py"
 ROLE_NAMES = {"plane": "on the plane", "push": "under pushes", "uneven": "on uneven ground"}
@@ -250,12 +249,13 @@ def _sentence_start(text: str) -> str:
 
 
 def measure_command(entry: CampaignEntry, script: str = SCRIPT) -> str:
-    """The command of ``script`` that measures the entry's checkpoint, its run folder relative to here if it
-    lies below."""
+    """The command of ``script`` (a file of ``study/scripts/``, run as its module) that measures the entry's
+    checkpoint, its run folder relative to here if it lies below."""
+    module = Path(script).with_suffix("").as_posix().replace("/", ".")
     run = entry.run
     here = Path.cwd()
     shown = os.path.relpath(run, here) if run.is_relative_to(here) else str(run)
-    return f"`python {script} {shown} --steps {evaluated_steps(entry) or entry.steps}`"
+    return f"`python -m {module} {shown} --steps {evaluated_steps(entry) or entry.steps}`"
 
 
 def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:

@@ -189,7 +189,7 @@ def test_the_campaign_trains_and_evaluates_its_queue_two_entries_at_once(tmp_pat
     command = [
         sys.executable,
         "-m",
-        "sb3_huri.experiments",
+        "study",
         "campaign",
         "--queue",
         str(queue),
@@ -225,7 +225,7 @@ def test_an_entry_stopped_at_the_wall_time_limit_is_not_counted_as_a_failure(tmp
     """The child ends unfinished at the limit (exit 1); the campaign says it stopped, not that it failed."""
     tiny_robust_preset(tmp_path)
     queue = _queue(tmp_path, [_entry("long", "long/Zerith1-v0_1", 10**6)])
-    command = [sys.executable, "-m", "sb3_huri.experiments", "campaign", "--queue", str(queue)]
+    command = [sys.executable, "-m", "study", "campaign", "--queue", str(queue)]
     result = subprocess.run(
         [*command, "--max-wall-minutes", "0.05"],
         capture_output=True,
@@ -417,7 +417,7 @@ def _kill_the_campaign_alone(tmp_path: Path) -> tuple[list[str], Path]:
     command = [
         sys.executable,
         "-m",
-        "sb3_huri.experiments",
+        "study",
         "campaign",
         "--queue",
         str(queue),
