@@ -40,11 +40,11 @@ import numpy as np
 from mujoco import rollout
 
 import zerith_gym
-from zerith_gym import robot
 from zerith_gym.cpu import simulator
 from zerith_gym.cpu.simulator import Simulator
 from zerith_gym.cpu.workers import available_cores, default_workers
-from zerith_gym.humanoid_task import FALL_HEIGHT
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1.task import FALL_HEIGHT
 
 
 def random_actions(steps: int, num_robots: int, scale: float, seed: int = 0) -> np.ndarray:

@@ -17,12 +17,12 @@ import time
 import numpy as np
 
 import zerith_gym
-from zerith_gym import robot
-from zerith_gym.contract import BatchStep
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
-from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.core.contract import BatchStep
+from zerith_gym.core.task import StepOutput
 from zerith_gym.sb3.callbacks import RewardTermsLogger
-from zerith_gym.task import StepOutput
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.zerith1.rewards import REWARD_NAMES
 
 
 class PrecomputedRobots:
@@ -46,7 +46,7 @@ class PrecomputedRobots:
         force, command, next_command = (rng.normal(size=(n, 3)) for _ in range(3))
         policy, critic = out.policy_obs.copy(), out.critic_obs.copy()
         level = np.zeros(n, dtype=int)
-        self.step_result = BatchStep(out, force, command, policy, critic, next_command, level)
+        self.step_result = BatchStep(out, force, command, policy, critic, next_command, level, REWARD_NAMES)
 
     def step(self, actions: np.ndarray) -> BatchStep:
         return self.step_result

@@ -28,7 +28,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.runner.curve import UpdateRecorder
-from zerith_gym.scenarios import get_scenario, scaled_scenario
+from zerith_gym.core.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"

@@ -50,11 +50,11 @@ import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
 from zerith_gym import robot_of
+from zerith_gym.core.physics import RANDOMIZED_FIELDS
+from zerith_gym.core.spec import RobotSpec
 from zerith_gym.mjx import MjxPhysics, SolverSettings
-from zerith_gym.physics import RANDOMIZED_FIELDS
-from zerith_gym.robot_spec import RobotSpec
 from zerith_gym.robots import locomotion_task
-from zerith_gym.terrain import PLANE, Terrain
+from zerith_gym.terrain.ground import PLANE, Terrain
 
 
 def raw_rates(num_envs: int, solver: SolverSettings, steps: int, robot: RobotSpec) -> tuple[float, float]:

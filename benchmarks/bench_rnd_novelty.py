@@ -26,7 +26,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from zerith_gym.scenarios import get_scenario, scaled_scenario
+from zerith_gym.core.scenarios import get_scenario, scaled_scenario
 
 ENV_ID = "Zerith1-v0"
 DEFAULT_SCENARIOS = ["nominal", "uneven", "sudden-centroid", "continuous-centroid", "friction", "load"]

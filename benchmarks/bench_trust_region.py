@@ -33,7 +33,7 @@ from sb3_huri.common.mirror import mirror_loss
 from sb3_huri.runner.build import preset_env, preset_model
 from sb3_huri.runner.curve import UpdateRecorder
 from sb3_huri.zoo import read_preset
-from zerith_gym.scenarios import get_scenario, scaled_scenario
+from zerith_gym.core.scenarios import get_scenario, scaled_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"

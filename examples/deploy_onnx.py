@@ -14,7 +14,7 @@ At each 50 Hz tick it reads what the robot's own sensors give (the IMU's orienta
 encoders' positions and velocities), builds the 46-value observation, runs the ONNX actor and sends joint
 position targets to the robot's PD-controlled actuators.
 
-The simulator is the MJCF (`zerith_gym/assets/zerith1.xml`, found without importing the package; `--mjcf`
+The simulator is the MJCF (`zerith_gym/zerith1/zerith1.xml`, found without importing the package; `--mjcf`
 for another copy) with physics settings other than training's by default: a 1 kHz physics step (training
 used 5 ms), the CG solver (training: Newton) and elliptic friction cones (training: pyramidal). The robot
 starts in the default stance, standing, with the command held for the whole run. The run reports whether
@@ -241,7 +241,7 @@ def default_mjcf() -> Path:
     spec = importlib.util.find_spec("zerith_gym")
     if spec is None or not spec.submodule_search_locations:
         raise DeployError("zerith_gym is not installed: pass the robot's MJCF with --mjcf")
-    return Path(next(iter(spec.submodule_search_locations))) / "assets" / "zerith1.xml"
+    return Path(next(iter(spec.submodule_search_locations))) / "zerith1" / "zerith1.xml"
 
 
 class SimulatedRobot:

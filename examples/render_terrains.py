@@ -18,11 +18,11 @@ import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
 
-from zerith_gym.physics import build_model
+from zerith_gym.core.physics import build_model
+from zerith_gym.core.scenarios import QUADRUPED_ROUGH
 from zerith_gym.robots import ROBOT_TASKS
-from zerith_gym.scenarios import QUADRUPED_ROUGH
-from zerith_gym.terrain import Terrain, tile_terrain
-from zerith_gym.tiles import TILE_KINDS
+from zerith_gym.terrain.ground import Terrain, tile_terrain
+from zerith_gym.terrain.tiles import TILE_KINDS
 
 VIEWS = {"zerith1": (17.0, 90.0, -38.0), "go2like": (4.0, 135.0, -30.0)}
 """Per robot: the camera's distance (m), azimuth and elevation (degrees)."""

@@ -30,7 +30,7 @@ import torch as th
 import zerith_gym
 from sb3_huri.runner.folder import load_run
 from zerith_gym import ROBOT_ENTRY_POINTS
-from zerith_gym.observations import layout_slices
+from zerith_gym.core.observations import layout_slices
 
 ENV_IDS = tuple(env_id for env_id, spec in gym.registry.items() if spec.entry_point in ROBOT_ENTRY_POINTS)
 """The envs whose agents this script can watch: every registered robot env (Zerith1-v0, Go2Like-v0)."""

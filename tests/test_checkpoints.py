@@ -37,7 +37,7 @@ from sb3_huri.runner.state import RunState, restore_random_states, start_on_leve
 from sb3_huri.runner.training import RunRequest, TrainingOptions, train_run
 from sb3_huri.zoo import read_preset
 from zerith_gym.sb3.callbacks import RandomizationCurriculum
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.terrain.levels import LevelRule
 
 ROOT = Path(__file__).resolve().parent.parent
 TRAIN = [sys.executable, str(ROOT / "examples" / "train_zerith.py")]

@@ -10,10 +10,11 @@ from stable_baselines3 import PPO
 
 import zerith_gym
 from zerith_gym import Zerith1Env
-from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
-from zerith_gym.randomization import NOMINAL
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import NOMINAL
+from zerith_gym.core.scenarios import SCENARIOS, scaled_scenario
 from zerith_gym.sb3.callbacks import RandomizationCurriculum
-from zerith_gym.scenarios import SCENARIOS, scaled_scenario
+from zerith_gym.zerith1.observations import CRITIC_LAYOUT, critic_in_units
 
 
 def test_randomization_scale_zero_is_nominal_and_one_is_the_scenario() -> None:

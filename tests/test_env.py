@@ -11,8 +11,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import zerith_gym
 from zerith_gym import Zerith1Env
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE, critic_in_units
-from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.zerith1.observations import CRITIC_SIZE, POLICY_SIZE, critic_in_units
+from zerith_gym.zerith1.rewards import REWARD_NAMES
 
 STEP_INFO_KEYS = {"fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command"}
 

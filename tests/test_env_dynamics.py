@@ -8,11 +8,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from zerith_gym import SCENARIOS, Zerith1Env, robot
-from zerith_gym.disturbances import ForceSchedule
-from zerith_gym.observations import CRITIC_LAYOUT, critic_in_units, layout_slices
-from zerith_gym.randomization import NOMINAL, TRAIN
-from zerith_gym.scenarios import Scenario
+from zerith_gym import SCENARIOS, Zerith1Env
+from zerith_gym.core.disturbances import ForceSchedule
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import NOMINAL, TRAIN
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.spec import sensor_slices
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1.observations import CRITIC_LAYOUT, critic_in_units
 
 CRITIC = layout_slices(CRITIC_LAYOUT)
 
@@ -49,7 +52,7 @@ def test_legs_colliding_with_each_other_are_detected():
     env = Zerith1Env(scenario="nominal")
     env.reset(seed=0)
     model, data = env.model, env.data
-    sensor = robot.sensor_slices(model)["leg_collision"]
+    sensor = sensor_slices(model)["leg_collision"]
     assert data.sensordata[sensor][0] == 0
     data.qpos[7 + 1], data.qpos[7 + 7] = -0.5, 0.5  # hips rolled inwards: the legs cross
     mujoco.mj_forward(model, data)

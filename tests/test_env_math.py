@@ -5,12 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from zerith_gym import SCENARIOS, Zerith1Env, gait, robot
-from zerith_gym.commands import CommandRanges, command_bounds, commands_from_uniforms
-from zerith_gym.disturbances import ForceSchedule, horizontal_vectors, schedule_table
-from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SIZE, POLICY_LAYOUT, layout_slices
-from zerith_gym.randomization import NOMINAL, delay_lags
-from zerith_gym.rewards import (
+from zerith_gym import SCENARIOS, Zerith1Env
+from zerith_gym.core.commands import CommandRanges, command_bounds, commands_from_uniforms
+from zerith_gym.core.disturbances import ForceSchedule, horizontal_vectors, schedule_table
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import NOMINAL, delay_lags
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.terrain.ground import UNEVEN, Terrain
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1 import gait
+from zerith_gym.zerith1.observations import CRITIC_LAYOUT, CRITIC_SIZE, POLICY_LAYOUT
+from zerith_gym.zerith1.rewards import (
     DEFAULT_REWARD_WEIGHTS,
     REWARD_NAMES,
     TERMS,
@@ -18,8 +23,6 @@ from zerith_gym.rewards import (
     reward_terms,
     reward_terms_by_name,
 )
-from zerith_gym.scenarios import Scenario
-from zerith_gym.terrain import UNEVEN, Terrain
 
 
 def test_gait_schedule_alternates_feet_and_is_smooth():
@@ -80,7 +83,7 @@ def test_cycle_table_matches_the_gait_functions():
 
 
 def _reference_terms(x: dict) -> np.ndarray:
-    """Table 4 written term by term for one robot with scalar math, independently of `zerith_gym.rewards`."""
+    """Table 4 written term by term for one robot with scalar math, independently of `zerith1.rewards`."""
     c, v, w = x["command"][0], x["base_linvel"][0], x["base_angvel"][0]
     up, stance = x["base_up"][0], x["stance"][0]
     force = x["foot_force"][0].reshape(2, 3)

@@ -30,9 +30,10 @@ from sb3_huri import METHODS, HuRiPPO
 from sb3_huri.export import FORMAT, actor_of, check_export, export_actor
 from sb3_huri.export.__main__ import main
 from sb3_huri.runner.folder import load_run
-from zerith_gym import gait, robot
-from zerith_gym.humanoid_task import FALL_HEIGHT, FALL_TILT
-from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1 import gait
+from zerith_gym.zerith1.observations import POLICY_LAYOUT, POLICY_SIZE
+from zerith_gym.zerith1.task import FALL_HEIGHT, FALL_TILT
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_ID = "Zerith1-v0"
@@ -160,7 +161,8 @@ def test_a_checkpoint_saved_with_a_variant_and_loaded_by_sb3s_ppo_exports_its_me
 
 def test_the_quadruped_exports_with_its_own_layout_joints_and_gains(tmp_path: Path) -> None:
     """`Go2Like-v0`: the metadata is the quadruped's (from its `RobotSpec` and `LocomotionTask`)."""
-    from zerith_gym import legged_gym_task, quadruped_robot
+    from zerith_gym.go2like import constants as quadruped_robot
+    from zerith_gym.go2like import task as legged_gym_task
     from zerith_gym.sb3.vec_env import make_vec_env
 
     venv = VecNormalize(make_vec_env(2, seed=0, robot="go2like", workers=0), norm_obs_keys=["policy"])
@@ -288,7 +290,7 @@ def run_without_torch(tmp_path: Path, *argv: str) -> subprocess.CompletedProcess
 def test_runner_walks_without_torch_in_sim2sim_physics(exported: dict[str, Path], tmp_path: Path) -> None:
     """The MJCF and the ONNX file alone, 1 kHz physics and the CG solver; two runs of 3 s."""
     mjcf = tmp_path / "zerith1.xml"
-    shutil.copy(REPO / "zerith_gym" / "assets" / "zerith1.xml", mjcf)
+    shutil.copy(REPO / "zerith_gym" / "zerith1" / "zerith1.xml", mjcf)
     argv = [str(exported["huri"]), "--seconds", "3", "--runs", "2", "--mjcf", str(mjcf), "--json"]
     result = run_without_torch(tmp_path, *argv)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -1,4 +1,4 @@
-"""The lazily built per-robot infos of a ZerithVecEnv step (zerith_gym.infos)."""
+"""The lazily built per-robot infos of a ZerithVecEnv step (zerith_gym.core.infos)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from stable_baselines3.common.vec_env import VecNormalize
 
 import zerith_gym
-from zerith_gym.infos import RobotInfo, StepInfos
-from zerith_gym.rewards import REWARD_NAMES
+from zerith_gym.core.infos import RobotInfo, StepInfos
+from zerith_gym.zerith1.rewards import REWARD_NAMES
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """The MJX backend (`make_vec_env(n, backend="mjx")`) against the CPU backend, with JAX on the CPU.
 
-The task code is shared (zerith_gym.task over numpy or jax.numpy), so these tests hold the two backends
+The task code is shared (zerith_gym.core.task over numpy or jax.numpy), so these tests hold the two backends
 to each other: the task functions on the same inputs, the physics from the same start, the randomized
 parameters' distributions, and the training pipelines (SB3 PPO, HuRiPPO, RL Zoo) on the MJX env.
 """
@@ -20,22 +20,17 @@ pytest.importorskip("mujoco.mjx")
 import jax.numpy as jnp  # noqa: E402
 
 import zerith_gym  # noqa: E402
-from zerith_gym import robot  # noqa: E402
-from zerith_gym.humanoid_task import HUMANOID_TASK, judge_step  # noqa: E402
-from zerith_gym.observations import CRITIC_LAYOUT, POLICY_LAYOUT, layout_slices  # noqa: E402
-from zerith_gym.physics import NominalModel, build_model, domain_model_fields  # noqa: E402
-from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams  # noqa: E402
-from zerith_gym.scenarios import SCENARIOS  # noqa: E402
-from zerith_gym.task import (  # noqa: E402
-    RESET_DRAWS,
-    STEP_DRAWS,
-    reset_values,
-    scenario_arrays,
-    step_disturbances,
-    task_constants,
-)
-from zerith_gym.terrain import Terrain  # noqa: E402
-from zerith_gym.terrain_levels import TerrainLevels  # noqa: E402
+from zerith_gym.core.observations import layout_slices  # noqa: E402
+from zerith_gym.core.physics import NominalModel, build_model, domain_model_fields  # noqa: E402
+from zerith_gym.core.randomization import DOMAIN_VECTOR_SIZE, DomainParams  # noqa: E402
+from zerith_gym.core.scenarios import SCENARIOS  # noqa: E402
+from zerith_gym.core.spec import read_sensors  # noqa: E402
+from zerith_gym.core.task import reset_values, scenario_arrays, step_disturbances, task_constants  # noqa: E402
+from zerith_gym.terrain.ground import Terrain  # noqa: E402
+from zerith_gym.terrain.levels import TerrainLevels  # noqa: E402
+from zerith_gym.zerith1 import constants as robot  # noqa: E402
+from zerith_gym.zerith1.observations import CRITIC_LAYOUT, POLICY_LAYOUT  # noqa: E402
+from zerith_gym.zerith1.task import HUMANOID_DRAWS, HUMANOID_TASK, RESET_DRAWS, STEP_DRAWS, judge_step  # noqa: E402
 
 COMMAND = (0.5, 0.0, 0.0)
 
@@ -57,14 +52,14 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     rng = np.random.default_rng(0)
     n, sc = 16, SCENARIOS[scenario]
     terrain = Terrain(sc.terrain)
-    model = build_model(terrain)
-    arrays = scenario_arrays(sc, None, 1000)
+    model = build_model(terrain, robot.ZERITH1)
+    arrays = scenario_arrays(sc, None, 1000, HUMANOID_TASK)
     reset_u, step_u = rng.random((n, RESET_DRAWS)), rng.random((n, STEP_DRAWS))
-    spawn = TerrainLevels(terrain.spec, np.arange(n)).spawn_points(np.arange(n))
+    spawn = TerrainLevels(terrain.spec, np.arange(n), robot.CONTROL_DT).spawn_points(np.arange(n))
     jitter = terrain.spec.spawn_jitter
-    jitted_reset = jax.jit(lambda u, a, xy: reset_values(u, a, xy, jitter))
+    jitted_reset = jax.jit(lambda u, a, xy: reset_values(u, a, xy, jitter, robot.ZERITH1, HUMANOID_DRAWS))
     _assert_tree_close(
-        reset_values(reset_u, arrays, spawn, jitter),
+        reset_values(reset_u, arrays, spawn, jitter, robot.ZERITH1, HUMANOID_DRAWS),
         jitted_reset(_to_jax(reset_u), _to_jax(arrays), jnp.asarray(spawn)),
     )
 
@@ -72,10 +67,11 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     force_offset = rng.choice(arrays.force_offsets, n)
     force, command = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
     args = (step_u, step_count, force_offset, force, command, arrays)
-    _assert_tree_close(step_disturbances(*args), jax.jit(step_disturbances)(*_to_jax(args)))
+    disturbances = jax.jit(lambda *a: step_disturbances(*a, HUMANOID_DRAWS))
+    _assert_tree_close(step_disturbances(*args, HUMANOID_DRAWS), disturbances(*_to_jax(args)))
 
-    vector = reset_values(reset_u, arrays, spawn, jitter).domain_vector
-    nominal = NominalModel.capture(model, terrain)
+    vector = reset_values(reset_u, arrays, spawn, jitter, robot.ZERITH1, HUMANOID_DRAWS).domain_vector
+    nominal = NominalModel.capture(model, terrain, robot.ZERITH1)
 
     def fields(vector):
         return domain_model_fields(nominal, DomainParams.from_vector(vector))
@@ -83,7 +79,7 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     _assert_tree_close(fields(vector), jax.jit(fields)(jnp.asarray(vector)))
 
     # Sensor readings of robots standing on the terrain, with noise on every quantity.
-    layout = robot.Sensors.layout(model)
+    layout = robot.ZERITH1.sensor_layout(model)
     sensordata = rng.normal(scale=0.3, size=(n, model.nsensordata))
     sensordata[:, layout.base_pos] += np.column_stack([spawn, np.full(n, 0.75)])
     sensordata[:, layout.foot_pos] += np.tile(np.column_stack([spawn, np.zeros(n)]), 2)
@@ -102,7 +98,7 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
     )
 
     def judged(sensordata, *inputs):
-        return judge_step(layout.read(sensordata), *inputs, constants)
+        return judge_step(read_sensors(layout, sensordata), *inputs, constants)
 
     _assert_tree_close(
         judged(sensordata, *inputs), jax.jit(judged)(*_to_jax((sensordata, *inputs))), rtol=1e-4, atol=1e-4
@@ -229,7 +225,7 @@ def test_mjx_follows_the_cpu_backend_with_the_quadruped():
     included), rewards and falls, and its contact readings (four feet, base and leg contacts), which MJX
     computes from its contacts as it does Zerith-1's. Standing for 20 steps (landing from the reset), then
     60 of random actions."""
-    from zerith_gym.legged_gym_task import POLICY_LAYOUT as QUAD_POLICY
+    from zerith_gym.go2like.task import POLICY_LAYOUT as QUAD_POLICY
 
     n = 3
     kwargs = dict(robot="go2like", scenario="nominal", command=(0.5, 0.0, 0.0), episode_steps=1000)
@@ -280,14 +276,14 @@ def test_mjx_episodes_end_and_restart_inside_the_step():
 
 def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
     """The robust scenario's forces take turns between centroid, hands and feet on MJX as on the CPU."""
-    from zerith_gym.disturbances import FORCE_TARGETS
-    from zerith_gym.scenarios import scaled_scenario
+    from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
+    from zerith_gym.core.scenarios import scaled_scenario
 
     gentle = scaled_scenario(SCENARIOS["robust"], 0.2)
     env = zerith_gym.make_vec_env(2, seed=0, backend="mjx", scenario=gentle, command=COMMAND)
     table = gentle.force.table(2000)
     model = env.robots.physics.model
-    bodies = {name: [model.body(b).id for b in names] for name, names in FORCE_TARGETS.items()}
+    bodies = {name: [model.body(b).id for b in names] for name, names in robot.ZERITH1.force_bodies.items()}
     env.reset()
     seen = set()
     for _ in range(520):  # every target's phases come within 400 steps of any start phase
@@ -298,7 +294,7 @@ def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
         for i, info in enumerate(infos):
             if dones[i]:
                 continue
-            target = list(FORCE_TARGETS)[table.target[step_count[i]]]
+            target = FORCE_TARGET_NAMES[table.target[step_count[i]]]
             for name, ids in bodies.items():
                 expected = info["external_force"] if name == target else np.zeros(3)
                 np.testing.assert_allclose(
@@ -306,7 +302,7 @@ def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
                 )
             if np.any(info["external_force"]):
                 seen.add(target)
-    assert seen == set(FORCE_TARGETS)
+    assert seen == set(FORCE_TARGET_NAMES)
 
 
 def test_mjx_randomizes_like_the_cpu_backend():
@@ -331,7 +327,7 @@ def test_mjx_randomizes_like_the_cpu_backend():
     joints = np.array([d.qpos[7:] for d in cpu.robots.sim.datas])
     samples_cpu = np.column_stack([task.domain_vector, task.command, joints])
     samples_mjx = np.concatenate(samples_mjx)
-    low, high = scenario_arrays(SCENARIOS["train"], None, 1000)[1:3]
+    low, high = scenario_arrays(SCENARIOS["train"], None, 1000, HUMANOID_TASK)[1:3]
     domain = samples_mjx[:, :DOMAIN_VECTOR_SIZE]
     assert np.all(domain >= low - 1e-6) and np.all(domain <= high + 1e-6)
     varying = np.flatnonzero(samples_cpu.std(axis=0) > 0)
@@ -384,7 +380,7 @@ def test_rl_zoo_trains_on_mjx_through_env_kwargs(tmp_path):
 
 
 def test_mjx_keeps_the_robots_contract():
-    from zerith_gym.contract import Robots
+    from zerith_gym.core.contract import Robots
 
     env = zerith_gym.make_vec_env(2, seed=0, backend="mjx")
     env.reset()

@@ -1,4 +1,4 @@
-"""Go2Like-v0: the quadruped on the shared step, with legged_gym's task (zerith_gym.legged_gym_task)."""
+"""Go2Like-v0: the quadruped on the shared step, with legged_gym's task (zerith_gym.go2like.task)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import zerith_gym  # noqa: F401
-from zerith_gym import legged_gym_task as lg
-from zerith_gym import quadruped_robot as quad
+from zerith_gym.core.task import TaskState
+from zerith_gym.go2like import constants as quad
+from zerith_gym.go2like import task as lg
 from zerith_gym.sb3.vec_env import make_vec_env
-from zerith_gym.task import TaskState
 
 
 def test_go2like_passes_gymnasiums_checker_and_stands_still_with_zero_actions() -> None:
@@ -105,7 +105,7 @@ def test_actions_reach_legged_gyms_clip_of_100_on_the_quadruped_and_1_on_zerith(
     0.5 rad from the default pose, not 0.25. Zerith-1 keeps its [-1, 1]."""
     from gymnasium import spaces
 
-    from zerith_gym.task import action_targets
+    from zerith_gym.core.task import action_targets
 
     quadruped, humanoid = gym.make("Go2Like-v0"), gym.make("Zerith1-v0")
     assert quadruped.action_space == spaces.Box(-100.0, 100.0, (12,), np.float32)

@@ -1,4 +1,4 @@
-"""The Go2-like quadruped model (assets/go2like.xml): spec against `quadruped_robot`, standing, drop, push."""
+"""The Go2-like quadruped model (go2like/go2like.xml): spec against its constants, standing, drop, push."""
 
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from zerith_gym import quadruped_robot as quad
+from zerith_gym.core.spec import read_sensors
+from zerith_gym.go2like import constants as quad
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +89,7 @@ def test_joints_actuators_and_timing_match_the_module(model: mujoco.MjModel) -> 
     assert model.opt.timestep == quad.PHYSICS_DT
     assert quad.DECIMATION == 4 and abs(quad.DECIMATION * quad.PHYSICS_DT - quad.CONTROL_DT) < 1e-12
     assert np.all(quad.ACTION_SCALE == 0.25)
-    layout = quad.Sensors.layout(model)
+    layout = quad.GO2LIKE.sensor_layout(model)
     assert layout.foot_force.stop - layout.foot_pos.start == 3 * 3 * len(quad.LEGS)
 
 
@@ -139,11 +140,11 @@ def test_a_fallen_robot_lies_on_its_trunk_and_the_contact_sensors_see_it(model: 
     data.ctrl[:] = quad.DEFAULT_JOINT_POS
     for _ in range(400):
         mujoco.mj_step(model, data)
-    readings = quad.Sensors.layout(model).read(data.sensordata[None])
+    readings = read_sensors(quad.GO2LIKE.sensor_layout(model), data.sensordata[None])
     assert readings.base_contact[0, 0] > 0
     assert np.all(readings.foot_force[0] == 0.0)  # the feet are in the air
     home = _home(model)
-    standing = quad.Sensors.layout(model).read(home.sensordata[None])
+    standing = read_sensors(quad.GO2LIKE.sensor_layout(model), home.sensordata[None])
     assert standing.base_contact[0, 0] == 0 and not standing.leg_contact.any()
 
 
@@ -169,7 +170,7 @@ def test_home_stance_holds_for_2_seconds(model: mujoco.MjModel) -> None:
     assert run["tilt"].max() < 0.05
     assert np.linalg.norm(run["pos"][-1, :2] - run["pos"][0, :2]) < 0.02
     _assert_standing(model, data)
-    reaction = quad.Sensors.layout(model).foot_force
+    reaction = quad.GO2LIKE.sensor_layout(model).foot_force
     weight = model.body_subtreemass[model.body(quad.ROOT_BODY).id] * 9.81
     assert data.sensordata[reaction].reshape(4, 3)[:, 2].sum() == pytest.approx(weight, rel=0.02)
 

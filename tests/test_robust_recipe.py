@@ -13,10 +13,18 @@ from stable_baselines3.common.vec_env import VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.zoo import algorithm_kwargs, normalize_kwargs, read_preset
-from zerith_gym.disturbances import FORCE_TARGETS, TARGET_INDEX, ForceCycle, ForceSchedule, horizontal_vectors
-from zerith_gym.observations import CRITIC_LAYOUT, CRITIC_SCALE, critic_in_units, layout_slices
-from zerith_gym.randomization import NOMINAL, WIDEST, domain_bounds
-from zerith_gym.scenarios import SCENARIOS, scaled_scenario
+from zerith_gym.core.disturbances import (
+    FORCE_TARGET_NAMES,
+    TARGET_INDEX,
+    ForceCycle,
+    ForceSchedule,
+    horizontal_vectors,
+)
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import NOMINAL, WIDEST, domain_bounds
+from zerith_gym.core.scenarios import SCENARIOS, scaled_scenario
+from zerith_gym.zerith1.constants import ZERITH1
+from zerith_gym.zerith1.observations import CRITIC_LAYOUT, CRITIC_SCALE, critic_in_units
 
 ROBUST_PRESET = Path(__file__).resolve().parent.parent / "hyperparams" / "huri_robust.yml"
 CRITIC = layout_slices(CRITIC_LAYOUT)
@@ -117,7 +125,9 @@ def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
     env = zerith_gym.make_vec_env(4, seed=0, scenario=gentle, workers=0)
     table = gentle.force.table(2000)
     sim = env.robots.sim
-    bodies = {target: [sim.models[0].body(b).id for b in names] for target, names in FORCE_TARGETS.items()}
+    bodies = {
+        target: [sim.models[0].body(b).id for b in names] for target, names in ZERITH1.force_bodies.items()
+    }
     env.reset()
     seen = set()
     for _ in range(520):  # every target's phases come within 400 steps of any start phase
@@ -125,7 +135,7 @@ def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
         step_count = state.step_count + state.force_offset  # the table step about to be simulated
         _, _, _, infos = env.step(np.zeros((4, 12)))
         for i, info in enumerate(infos):
-            target = list(FORCE_TARGETS)[table.target[step_count[i]]]
+            target = FORCE_TARGET_NAMES[table.target[step_count[i]]]
             applied = sim.datas[i].xfrc_applied[:, :3]
             if info["fall"] or info.get("TimeLimit.truncated"):
                 continue  # reset after the step
@@ -135,7 +145,7 @@ def test_robust_forces_act_on_the_bodies_of_the_current_target_only():
             if np.any(info["external_force"]):
                 seen.add(target)
     env.close()
-    assert seen == set(FORCE_TARGETS)
+    assert seen == set(FORCE_TARGET_NAMES)
 
 
 def test_the_robust_preset_trains_with_its_curriculum_and_normalizer():

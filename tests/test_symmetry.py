@@ -11,8 +11,9 @@ from stable_baselines3.common.vec_env import VecNormalize
 import zerith_gym
 from sb3_huri import HuRiPPO
 from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
-from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE, layout_slices
-from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR, SignedPermutation
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.zerith1.observations import POLICY_LAYOUT, POLICY_SIZE
+from zerith_gym.zerith1.symmetry import ACTION_MIRROR, POLICY_MIRROR, SignedPermutation
 
 CLOCK = layout_slices(POLICY_LAYOUT)["clock_sin_cos"]
 

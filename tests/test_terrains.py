@@ -13,12 +13,12 @@ from stable_baselines3.common.logger import configure
 
 import zerith_gym
 from sb3_huri import HuRiPPO
-from zerith_gym.physics import build_model
+from zerith_gym.core.physics import build_model
+from zerith_gym.core.scenarios import SCENARIOS, Scenario
 from zerith_gym.sb3.callbacks import TerrainCurriculum
-from zerith_gym.scenarios import SCENARIOS, Scenario
-from zerith_gym.terrain import Terrain, TerrainSpec, tile_terrain
-from zerith_gym.terrain_levels import LevelRule, TerrainLevels, next_levels
-from zerith_gym.tiles import (
+from zerith_gym.terrain.ground import Terrain, TerrainSpec, tile_terrain
+from zerith_gym.terrain.levels import LevelRule, TerrainLevels, next_levels
+from zerith_gym.terrain.tiles import (
     LEGGED_GYM_PROPORTIONS,
     PAPER_TILE_KINDS,
     TILE_KINDS,
@@ -26,6 +26,7 @@ from zerith_gym.tiles import (
     legged_gym_kinds,
     tile_heights,
 )
+from zerith_gym.zerith1.constants import ZERITH1
 
 SMALL = {"levels": 3, "tile_size": 6.0, "border": 2.0}
 """A small grid of every kind: 3 levels of 6-m tiles."""
@@ -230,7 +231,7 @@ def test_robots_start_on_the_new_kinds_and_stand_on_the_ground() -> None:
 def test_heights_under_the_feet_are_mujocos_ground() -> None:
     """`height_at` (rewards, the critic's samples, falls) against rays cast onto the compiled model."""
     terrain = Terrain(tile_terrain(kinds=TILE_KINDS, **SMALL), seed=2)
-    model = build_model(terrain)
+    model = build_model(terrain, ZERITH1)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     rng = np.random.default_rng(0)
@@ -328,7 +329,7 @@ def test_level_moves_follow_the_rule() -> None:
 
 def test_levels_move_only_for_ended_episodes_and_only_with_a_rule() -> None:
     spec = tile_terrain(levels=5, start_levels=5)
-    tiles = TerrainLevels(spec, np.arange(8))
+    tiles = TerrainLevels(spec, np.arange(8), ZERITH1.control_dt)
     start = tiles.levels.copy()
     ids = np.arange(8)
     tiles.started(ids, tiles.spawn_points(ids))
@@ -350,7 +351,7 @@ def test_levels_move_only_for_ended_episodes_and_only_with_a_rule() -> None:
 
 def test_an_episode_cut_by_a_diverging_simulation_moves_no_level() -> None:
     spec = tile_terrain(levels=5, start_levels=5)
-    tiles = TerrainLevels(spec, np.arange(4))
+    tiles = TerrainLevels(spec, np.arange(4), ZERITH1.control_dt)
     ids = np.arange(4)
     tiles.set_rule(LevelRule())
     tiles.started(ids, tiles.spawn_points(ids))

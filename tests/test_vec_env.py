@@ -10,7 +10,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 import zerith_gym
 from zerith_gym import Zerith1Env, ZerithVecEnv
-from zerith_gym.observations import CRITIC_SIZE, POLICY_SIZE
+from zerith_gym.zerith1.observations import CRITIC_SIZE, POLICY_SIZE
 
 STEP_INFO_KEYS = ("fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command")
 
@@ -334,10 +334,10 @@ def test_stepping_before_the_first_reset_is_a_clear_error():
 
 
 def test_every_backend_keeps_the_robots_contract():
-    """The CPU batch and the worker pool have every member of `zerith_gym.contract.Robots` (MJX: test_mjx)."""
+    """The CPU batch and the worker pool have every member of `core.contract.Robots` (MJX: test_mjx)."""
     import inspect
 
-    from zerith_gym.contract import Robots, check_num_robots
+    from zerith_gym.core.contract import Robots, check_num_robots
 
     members = [name for name in vars(Robots) if not name.startswith("_")] + ["num_robots", "scenario"]
     for workers in (0, 1):
@@ -354,10 +354,10 @@ def test_every_backend_keeps_the_robots_contract():
 
 
 def test_the_worker_shared_block_holds_every_field_of_the_step_record():
-    from zerith_gym.contract import BatchStep
+    from zerith_gym.core.contract import BatchStep
+    from zerith_gym.core.task import StepOutput
     from zerith_gym.cpu.workers import step_columns
     from zerith_gym.robots import ROBOT_TASKS
-    from zerith_gym.task import StepOutput
 
     for task in ROBOT_TASKS.values():
         out, batch = step_columns(task)

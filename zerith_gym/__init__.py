@@ -10,6 +10,11 @@ Importing the package registers `Zerith1-v0` and `Go2Like-v0` (a Go2-like quadru
 `zerith_gym.make_vec_env(n, seed=...)` gives n robots as a Stable-Baselines3 VecEnv (`ZerithVecEnv`);
 it is imported on first use, so importing the package does not import torch. `backend="mjx"` simulates
 them with MuJoCo MJX on JAX's default device (`zerith_gym.mjx`, the optional `mjx` extra).
+
+Inside: `core/` is the step every robot shares, and imports no robot; `zerith1/` and `go2like/` are the
+robots, each with its constants, MJCF, task and env class; `robots.py` names them for the `robot` option
+(`options.py`); `terrain/` is the ground; `cpu/` and `mjx/` simulate batches of robots; `sb3/` is the
+Stable-Baselines3 vec env and callbacks.
 """
 
 from typing import Any
@@ -17,10 +22,10 @@ from typing import Any
 import gymnasium as gym
 from gymnasium.envs.registration import register
 
-from zerith_gym.envs.zerith1 import Zerith1Env
-from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES
-from zerith_gym.scenarios import SCENARIOS
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.core.scenarios import SCENARIOS
+from zerith_gym.core.task import EPISODE_STEPS
+from zerith_gym.zerith1.env import Zerith1Env
+from zerith_gym.zerith1.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_NAMES
 
 __all__ = [
     "DEFAULT_REWARD_WEIGHTS",
@@ -36,8 +41,8 @@ __all__ = [
 
 ZERITH1_ID = "Zerith1-v0"
 GO2LIKE_ID = "Go2Like-v0"
-ZERITH1_ENTRY_POINT = "zerith_gym.envs.zerith1:Zerith1Env"
-GO2LIKE_ENTRY_POINT = "zerith_gym.envs.go2like:Go2LikeEnv"
+ZERITH1_ENTRY_POINT = "zerith_gym.zerith1.env:Zerith1Env"
+GO2LIKE_ENTRY_POINT = "zerith_gym.go2like.env:Go2LikeEnv"
 ROBOT_ENTRY_POINTS = {ZERITH1_ENTRY_POINT: "zerith1", GO2LIKE_ENTRY_POINT: "go2like"}
 """The entry points of the envs `make_vec_env` batches, and the robot (its `robot` option) of each."""
 

@@ -1,5 +1,5 @@
 """The options every Zerith env takes (`ZerithOptions`, declared once) and their checks: observation modes,
-robots, scenarios, reward weights, reset options and commands. The spaces are in `zerith_gym.spaces`."""
+robots, scenarios, reward weights, reset options and commands. The spaces are in `zerith_gym.core.spaces`."""
 
 from __future__ import annotations
 
@@ -9,10 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from zerith_gym.rewards import resolve_reward_weights
+from zerith_gym.core.scenarios import Scenario, resolve_scenario
+from zerith_gym.core.task import EPISODE_STEPS, LocomotionTask
 from zerith_gym.robots import locomotion_task
-from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.task import EPISODE_STEPS, LocomotionTask
 
 OBS_MODES = ("dict", "policy")
 RESET_OPTIONS = ("command",)
@@ -87,6 +86,24 @@ class ZerithOptions:
         if self.command is not None:
             return tuple(check_command(self.command, "command").tolist())
         return scenario.command
+
+
+def resolve_reward_weights(
+    overrides: Mapping[str, float] | None, defaults: Mapping[str, float]
+) -> np.ndarray:
+    """The weight vector (K,) in the order of `defaults` (a task's terms and weights) with `overrides`
+    applied; ValueError on an unknown term or a non-finite weight."""
+    weights = dict(defaults)
+    for name, value in (overrides or {}).items():
+        if name not in weights:
+            raise ValueError(
+                f"unknown reward term {name!r} in reward_weights; valid terms: {', '.join(defaults)}"
+            )
+        value = float(value)
+        if not np.isfinite(value):
+            raise ValueError(f"reward_weights[{name!r}] must be finite, got {value}")
+        weights[name] = value
+    return np.array([weights[name] for name in defaults])
 
 
 def reset_command(options: Mapping[str, Any] | None, also_valid: tuple[str, ...] = ()) -> np.ndarray | None:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from zerith_gym.humanoid_task import HUMANOID_TASK
-from zerith_gym.legged_gym_task import QUADRUPED_TASK
-from zerith_gym.task import LocomotionTask
+from zerith_gym.core.task import LocomotionTask
+from zerith_gym.go2like.task import QUADRUPED_TASK
+from zerith_gym.zerith1.task import HUMANOID_TASK
 
 ROBOT_TASKS: dict[str, LocomotionTask] = {"zerith1": HUMANOID_TASK, "go2like": QUADRUPED_TASK}
 """Each robot's name (the envs' `robot` option) and its task."""

@@ -1,12 +1,13 @@
 """A symmetry loss on the actor: act on a mirrored observation as on the original, mirrored.
 
-An env whose task is left-right symmetric (Zerith1-v0: `zerith_gym.symmetry`) gives two signed permutations,
-`policy_mirror` of the actor's observation and `action_mirror` of the action (objects with `index` and
-`sign` arrays: ``mirrored[..., i] = sign[i] * x[..., index[i]]``). The loss is the mean over the minibatch
-of ``|mu(mirror(o)) - action_mirror(mu(o))|^2``, with ``mu`` the actor's action mean: a symmetric policy
-scores 0. The actor sees normalized observations (`VecNormalize`), so the mirror is carried into normalized
-units: ``normalize(mirror(x)) = scale * x_normalized[index] + shift`` (clipping aside). :func:`env_mirrors`
-reads both maps from the env and carries the observation's into the units of its ``VecNormalize``.
+An env whose task is left-right symmetric (Zerith1-v0: `zerith_gym.zerith1.symmetry`) gives two signed
+permutations, `policy_mirror` of the actor's observation and `action_mirror` of the action (objects with
+`index` and `sign` arrays: ``mirrored[..., i] = sign[i] * x[..., index[i]]``). The loss is the mean over the
+minibatch of ``|mu(mirror(o)) - action_mirror(mu(o))|^2``, with ``mu`` the actor's action mean: a symmetric
+policy scores 0. The actor sees normalized observations (`VecNormalize`), so the mirror is carried into
+normalized units: ``normalize(mirror(x)) = scale * x_normalized[index] + shift`` (clipping aside).
+:func:`env_mirrors` reads both maps from the env and carries the observation's into the units of its
+``VecNormalize``.
 """
 
 from __future__ import annotations
@@ -79,7 +80,7 @@ def env_mirrors(
     except AttributeError as error:
         raise ValueError(
             "mirror_coef > 0 needs an env with `policy_mirror` and `action_mirror` maps of the actor's "
-            "observation and of the action (Zerith1-v0 has them: zerith_gym.symmetry)"
+            "observation and of the action (Zerith1-v0 has them: zerith_gym.zerith1.symmetry)"
         ) from error
     is_dict = isinstance(observation_space, spaces.Dict)
     if is_dict and actor_key not in observation_space.spaces:

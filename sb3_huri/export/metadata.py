@@ -37,9 +37,9 @@ def deployment_metadata(env_id: str, input_size: int, training_scenario: str | N
     robot_name = ROBOT_ENTRY_POINTS.get(str(gym.spec(env_id).entry_point))
     if robot_name is None:
         return {}
-    from zerith_gym.observations import layout_slices
+    from zerith_gym.core.observations import layout_slices
+    from zerith_gym.core.scenarios import SCENARIOS
     from zerith_gym.robots import locomotion_task
-    from zerith_gym.scenarios import SCENARIOS
 
     task = locomotion_task(robot_name)
     robot = task.robot
@@ -51,7 +51,7 @@ def deployment_metadata(env_id: str, input_size: int, training_scenario: str | N
     commands = SCENARIOS[training_scenario or task.default_scenario].command_ranges
     return {
         "robot": robot.display_name,
-        "mjcf": f"zerith_gym/assets/{robot.asset_path.name}",
+        "mjcf": f"zerith_gym/{robot.asset_path.parent.name}/{robot.asset_path.name}",
         "observation_layout": [
             {
                 "name": name,

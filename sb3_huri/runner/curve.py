@@ -29,7 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_huri.runner.files import RunError, naming, replaced
 from sb3_huri.runner.state import terrain_levels
-from zerith_gym.infos import ended_falls
+from zerith_gym.core.infos import ended_falls
 
 CURVE_FILE = "curve.csv"
 CURVE_COLUMNS = (

@@ -39,10 +39,10 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.runner.files import RunError, replaced
-from zerith_gym.observations import layout_slices
-from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
-from zerith_gym.robot import CONTROL_DT, ZERITH1
-from zerith_gym.scenarios import SCENARIOS, TEST_COMMAND
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import DOMAIN_VECTOR_SIZE, DomainParams
+from zerith_gym.core.scenarios import SCENARIOS, TEST_COMMAND
+from zerith_gym.zerith1.constants import CONTROL_DT, ZERITH1
 
 MIN_AIR_STEPS = 3
 """A foot must stay off the ground this many control steps (60 ms) for a step to count."""

@@ -48,7 +48,7 @@ from sb3_huri.runner.evaluation import (
 from sb3_huri.runner.files import RunError, read_json, write_json
 from sb3_huri.runner.state import RunState
 from zerith_gym import ZERITH1_ID, robot_of
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.core.task import EPISODE_STEPS
 
 EVALUATIONS = "evaluations"
 """The folder of a run's evaluation records."""

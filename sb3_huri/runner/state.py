@@ -111,7 +111,7 @@ def terrain_levels(env: VecEnv) -> list[int] | None:
 
 def start_on_levels(env: VecEnv, levels: list[int]) -> bool:
     """Start `env`'s robots on `levels` at its next reset, each in its own kind column (robot i in column
-    ``i % columns``, as `zerith_gym.terrain_levels` places them). With another number of robots than
+    ``i % columns``, as `zerith_gym.terrain.levels` places them). With another number of robots than
     `levels` has, a warning, and the robots start from the terrain's start levels (False)."""
     if len(levels) != env.num_envs:
         warnings.warn(

@@ -202,8 +202,8 @@ def _train(request: RunRequest, options: TrainingOptions) -> int:
     import torch as th
     from stable_baselines3.common.callbacks import CallbackList
 
+    from zerith_gym.core.scenarios import get_scenario
     from zerith_gym.robots import locomotion_task
-    from zerith_gym.scenarios import get_scenario
 
     th.set_num_threads(options.threads)
     preset, overrides, method, seed = _resolve_preset(request)

@@ -150,8 +150,8 @@ def training_env(
     from sb3_huri.runner.build import preset_env
     from sb3_huri.runner.state import RunState, start_on_levels
     from zerith_gym import robot_of
+    from zerith_gym.core.task import EPISODE_STEPS
     from zerith_gym.sb3.callbacks import RandomizationCurriculum, TerrainCurriculum
-    from zerith_gym.task import EPISODE_STEPS
 
     config = yaml.safe_load((run / env_id / "config.yml").read_text())
     preset = dict(config) if isinstance(config, list) else config  # RL Zoo writes a list of pairs

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.runner.evaluation import evaluate, parse_case
-from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, DomainParams
+from zerith_gym.core.randomization import DOMAIN_VECTOR_SIZE, DomainParams
 
 FRICTION_BINS = (0.1, 0.3, 0.55, 1.0, 1.5, 2.0)
 """Default bin edges for the sole's friction (contact frictions 0.55, 0.65, 0.775, 1, 1.25, 1.5)."""

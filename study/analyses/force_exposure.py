@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from zerith_gym.disturbances import FORCE_TARGETS, ForceCycle
-from zerith_gym.scenarios import SCENARIOS, Scenario, scaled_scenario
+from zerith_gym.core.disturbances import FORCE_TARGET_NAMES, ForceCycle
+from zerith_gym.core.scenarios import SCENARIOS, Scenario, scaled_scenario
 
 
 def training_scenario(name: str, scale: float, start_phases: Sequence[int] | None = None) -> Scenario:
@@ -57,7 +57,7 @@ def exposure_table(kinds: np.ndarray, steps: np.ndarray, falls: np.ndarray) -> s
         "| target | force (N) | share of robot-steps | falls | falls per 1,000 robot-steps |",
         "|---|---|---|---|---|",
     ]
-    targets = list(FORCE_TARGETS)
+    targets = list(FORCE_TARGET_NAMES)
     for (target, low, high), kind_steps, kind_falls in zip(kinds, steps, falls, strict=True):
         rate = 1000 * kind_falls / kind_steps if kind_steps else float("nan")
         share = f"{kind_steps / steps.sum():.3f}"

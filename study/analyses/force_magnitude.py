@@ -62,10 +62,10 @@ from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate
 from sb3_huri.runner.files import read_json, resumed_record, write_json
 from sb3_huri.runner.record import EVALUATIONS
 from zerith_gym import ZERITH1_ID
-from zerith_gym.disturbances import ForceSchedule
-from zerith_gym.randomization import NOMINAL, RandomizationRanges
-from zerith_gym.robot import CONTROL_DT
-from zerith_gym.scenarios import SCENARIOS, Scenario
+from zerith_gym.core.disturbances import ForceSchedule
+from zerith_gym.core.randomization import NOMINAL, RandomizationRanges
+from zerith_gym.core.scenarios import SCENARIOS, Scenario
+from zerith_gym.zerith1.constants import CONTROL_DT
 
 FIG4_CASES = ("load", "friction", "load-friction")
 """The paper's Fig. 4 conditions: a load, a friction, both, under U[0, 100] N on the centroid every 0.5 s."""
@@ -322,7 +322,7 @@ def measure_agent(
     case-scale after it (the rest is measured by the next call). A file of other settings is refused
     (ExperimentError) rather than overwritten."""
     from sb3_huri.runner.folder import load_checkpoint
-    from zerith_gym.task import EPISODE_STEPS
+    from zerith_gym.core.task import EPISODE_STEPS
 
     for case in cases:
         _schedule(case)  # unknown cases fail before anything is loaded

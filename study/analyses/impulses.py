@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, evaluate
-from zerith_gym.disturbances import ForceSchedule
-from zerith_gym.gait import GAIT_PERIOD
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.robot import CONTROL_DT, TOTAL_MASS
-from zerith_gym.scenarios import SCENARIOS, Scenario
-from zerith_gym.task import EPISODE_STEPS
+from zerith_gym.core.disturbances import ForceSchedule
+from zerith_gym.core.randomization import NOMINAL
+from zerith_gym.core.scenarios import SCENARIOS, Scenario
+from zerith_gym.core.task import EPISODE_STEPS
+from zerith_gym.zerith1.constants import CONTROL_DT, TOTAL_MASS
+from zerith_gym.zerith1.gait import GAIT_PERIOD
 
 DIRECTIONS = {
     "from behind": 0.0,

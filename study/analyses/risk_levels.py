@@ -49,7 +49,7 @@ from sb3_huri.runner.evaluation import PLANE_CASE, RiskStates, evaluate, parse_c
 from sb3_huri.runner.files import read_json, resumed_record, write_json
 from sb3_huri.runner.record import EVALUATIONS
 from zerith_gym import GO2LIKE_ID, ZERITH1_ID
-from zerith_gym.scenarios import TEST_COMMAND
+from zerith_gym.core.scenarios import TEST_COMMAND
 
 RISK_LEVELS_SUFFIX = "-risk_levels.json"
 """A checkpoint's risk levels are in its run's ``evaluations/`` folder, in ``<steps>-risk_levels.json``."""
@@ -313,7 +313,7 @@ def _record(
     episode_steps: int | None,
 ) -> dict[str, Any]:
     """A new file's contents: what was measured and how, and no case yet."""
-    from zerith_gym.task import EPISODE_STEPS
+    from zerith_gym.core.task import EPISODE_STEPS
 
     return {
         "env_id": env_id,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from sb3_huri.experiments.markdown import table
 from sb3_huri.huri.methods import METHODS
 from sb3_huri.runner.folder import saved_models
 from study.analyses.advantages import (
@@ -62,24 +63,24 @@ def advantages_section(entries: Sequence[CampaignEntry]) -> list[str]:
         means, settings = summary(record), record["settings"]
         states = settings["rollouts"] * settings["robots"] * settings["rollout_steps"]
         curriculum = record.get("curriculum")
-        cells = [f"{states:,}", "-" if curriculum is None else f"{curriculum['scale']:g}"]
+        cells = [f"{entry.name} @ {millions(steps)}", entry.method, f"{states:,}"]
+        cells.append("-" if curriculum is None else f"{curriculum['scale']:g}")
         cells.append(f"{means['risk_mean']:+.2f} ({means['risk_sd']:.2f})")
         for name in COMPARATORS:
             measured = f"{name}_{MEASURES[0]}" in means
             cells.append(" / ".join(f"{means[f'{name}_{key}']:.3f}" for key in MEASURES) if measured else "-")
         if "other_td_level_neutral_weighted_sign_changes" in means:
             cells[-1] += f" ({means['other_td_level_neutral_weighted_sign_changes']:.3f})"
-        rows.append(f"| {entry.name} @ {millions(steps)} | {entry.method} | " + " | ".join(cells) + " |")
+        rows.append(cells)
     if rows:
-        lines += [
-            "| agent | method | states | curriculum scale | risk level: mean (sd over states) | against the "
-            "neutral level: correlation / sign changes / weighted | against the rollout's mean level: "
-            "correlation / sign changes / weighted | against its levels read the other way: correlation / "
-            "sign changes / weighted (that reading against the neutral level: weighted) |",
-            "|---|---|---|---|---|---|---|---|",
-            *rows,
-            "",
-        ]
+        measures = "correlation / sign changes / weighted"
+        header = ["agent", "method", "states", "curriculum scale", "risk level: mean (sd over states)"]
+        header += [f"against the neutral level: {measures}", f"against the rollout's mean level: {measures}"]
+        header.append(
+            f"against its levels read the other way: {measures} (that reading against the neutral level: "
+            "weighted)"
+        )
+        lines += [*table(header, rows), ""]
     else:
         lines += ["No agent's advantages are measured yet.", ""]
     if missing:

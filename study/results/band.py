@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sb3_huri.experiments.markdown import table
 from sb3_huri.huri import METHODS
 from sb3_huri.runner.curve import read_curve
 from sb3_huri.runner.robustness import read_rows
@@ -50,25 +51,19 @@ def band_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) -> 
     runs = {run: run_entries for run, run_entries in runs_of(entries).items() if _risk_rows(run)}
     if not runs:
         return [*lines, "No run has logged its risk levels yet.", "", *figure_lines(path, out, drawn=False)]
-    lines += [
-        "| run | steps | seeking / neutral / averse (last 1M) | over the whole run | band (t_min, t_max) "
-        "| mean beta | its RND part |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for run, run_entries in runs.items():
-        rows = _risk_rows(run)
-        last = _window(rows, rows[-1]["timesteps"])
-        whole = {column: float(np.mean([row[column] for row in rows])) for column in SHARES}
+        curve = _risk_rows(run)
+        last = _window(curve, curve[-1]["timesteps"])
+        whole = {column: float(np.mean([row[column] for row in curve])) for column in SHARES}
         label = f"`{link(run, out)}` ({method_label(run_entries[0].method)})"
         band = f"({last['iqr_t_min']:.3f}, {last['iqr_t_max']:.3f})"
-        beta = f"{last['risk_mean']:+.2f} | {_number(last['risk_rnd_mean'], '+.2f')}"
-        lines.append(
-            f"| {label} | {int(rows[-1]['timesteps']):,} | {_shares(last)} | {_shares(whole)} | {band} "
-            f"| {beta} |"
-        )
-    lines.append("")
+        cells = [label, f"{int(curve[-1]['timesteps']):,}", _shares(last), _shares(whole), band]
+        rows.append([*cells, f"{last['risk_mean']:+.2f}", _number(last["risk_rnd_mean"], "+.2f")])
     _plot(path, runs)
-    return [*lines, *figure_lines(path, out)]
+    header = ["run", "steps", "seeking / neutral / averse (last 1M)", "over the whole run"]
+    header += ["band (t_min, t_max)", "mean beta", "its RND part"]
+    return [*lines, *table(header, rows), "", *figure_lines(path, out)]
 
 
 def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
@@ -103,10 +98,6 @@ def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]
             + f" at equal steps: training return, episode length (steps of 20 ms), fall rate and {progress}, "
             "then the percentile run's band shares.",
             "",
-            "| steps | return: percentile / HuRi / PPO | length | fall rate | "
-            + ("terrain level" if on_tiles else "Table-1 mean (rows)")
-            + " | seeking / neutral / averse |",
-            "|---|---|---|---|---|---|",
         ]
         columns = [("ep_return", ".0f"), ("ep_len", ".0f"), ("fall_rate", ".2f")]
         if on_tiles:
@@ -114,6 +105,7 @@ def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]
         curves = {m: read_curve(peer) if peer else [] for m, peer in peers.items()}
         robustness = {m: read_rows(peer) if peer else {} for m, peer in peers.items()}
         own_rows = read_rows(run)
+        rows = []
         for step in marks:
             figures = [_window(own, step)] + [_window(curves[m], step) for m in peers]
             cells = [
@@ -122,8 +114,10 @@ def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]
             if not on_tiles:
                 table1 = [_row_near(own_rows, step)] + [_row_near(robustness[m], step) for m in peers]
                 cells.append(" / ".join(_table1_cell(row, step) for row in table1))
-            lines.append(f"| {step / 1e6:.0f}M | " + " | ".join(cells) + f" | {_shares(figures[0])} |")
-        lines.append("")
+            rows.append([f"{step / 1e6:.0f}M", *cells, _shares(figures[0])])
+        header = ["steps", "return: percentile / HuRi / PPO", "length", "fall rate"]
+        header += ["terrain level" if on_tiles else "Table-1 mean (rows)", "seeking / neutral / averse"]
+        lines += [*table(header, rows), ""]
     return lines
 
 

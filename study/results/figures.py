@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sb3_huri.experiments import paper
+from sb3_huri.experiments.markdown import table
 from sb3_huri.runner.curve import final_return, read_curve
 from sb3_huri.runner.evaluation import PLANE_CASE, RISK_CASES, read_trace
 from sb3_huri.runner.record import trace_path
@@ -66,24 +67,23 @@ def robustness_section(
         "line style: "
         "protocol (robust solid, paper dashed, terrain dotted).",
         "",
-        "| run | entries | rows | newest row: steps | its Table-1 mean | robots per case |",
-        "|---|---|---|---|---|---|",
     ]
-    curves = {}
+    curves, table_rows = {}, []
     for run, run_entries in runs_of(entries).items():
         rows = list(read_rows(run).values())
         if not rows:
             continue
         curves[run] = rows
         last = rows[-1]
-        lines.append(
-            f"| `{link(run, out)}` | {', '.join(e.name for e in run_entries)} | {len(rows)} | "
-            f"{int(last['timesteps']):,} | {float(last['table1_mean']):.3f} | {last['episodes']} |"
-        )
+        names, steps = ", ".join(e.name for e in run_entries), f"{int(last['timesteps']):,}"
+        mean = f"{float(last['table1_mean']):.3f}"
+        table_rows.append([f"`{link(run, out)}`", names, len(rows), steps, mean, last["episodes"]])
     if not curves:
-        return [*lines[:4], "No run has a robustness curve yet.", "", *figure_lines(path, out, drawn=False)]
+        return [*lines, "No run has a robustness curve yet.", "", *figure_lines(path, out, drawn=False)]
     _plot_robustness(path, runs_of(entries), curves, evaluations)
-    return [*lines, "", *figure_lines(path, out), *early_signal_lines(entries, out)]
+    header = ["run", "entries", "rows", "newest row: steps", "its Table-1 mean", "robots per case"]
+    lines += [*table(header, table_rows), "", *figure_lines(path, out)]
+    return [*lines, *early_signal_lines(entries, out)]
 
 
 def _plot_robustness(
@@ -135,9 +135,8 @@ def returns_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) 
         "mean over seeds where there are several, with a min-max band over the seeds (not a confidence "
         "band: with two or three seeds a 95% band would say little).",
         "",
-        "| run | entries | steps | return, last tenth of its steps | paper's average return (its scale) |",
-        "|---|---|---|---|---|",
     ]
+    rows = []
     groups: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
     for run, run_entries in runs_of(entries).items():
         curve = read_curve(run)
@@ -148,14 +147,14 @@ def returns_section(entries: Sequence[CampaignEntry], figures: Path, out: Path) 
         if steps.size:  # no episode ended yet: no return to draw
             groups.setdefault((entry.protocol, entry.method), []).append((steps, returns))
         reference = paper.TRAINING_RETURN.get(entry.method)
-        lines.append(
-            f"| `{link(run, out)}` | {', '.join(e.name for e in run_entries)} | "
-            f"{int(curve[-1]['timesteps']):,} | {final_return(curve):.1f} | {reference or '-'} |"
-        )
+        names, trained = ", ".join(e.name for e in run_entries), f"{int(curve[-1]['timesteps']):,}"
+        rows.append([f"`{link(run, out)}`", names, trained, f"{final_return(curve):.1f}", reference or "-"])
     if not groups:
-        return [*lines[:4], "No run has a learning curve yet.", "", *figure_lines(path, out, drawn=False)]
+        return [*lines, "No run has a learning curve yet.", "", *figure_lines(path, out, drawn=False)]
     _plot_returns(path, groups)
-    return [*lines, "", *_curriculum_sentences(entries, out), *figure_lines(path, out)]
+    header = ["run", "entries", "steps", "return, last tenth of its steps"]
+    lines += [*table([*header, "paper's average return (its scale)"], rows), ""]
+    return [*lines, *_curriculum_sentences(entries, out), *figure_lines(path, out)]
 
 
 def _curriculum_sentences(entries: Sequence[CampaignEntry], out: Path) -> list[str]:
@@ -222,22 +221,22 @@ def tracking_section(evaluations: Sequence[Evaluated], figures: Path, out: Path)
         "beside them. An agent that falls early is measured on fewer, earlier steps: compare the errors of "
         "agents whose survival is alike.",
         "",
-        "| agent | " + " | ".join(f"{case}: linear / yaw (survival)" for case in TRACKING_CASES) + " |",
-        "|---|" + "---|" * len(TRACKING_CASES),
     ]
     shown = [e for e in evaluations if any(case in e.data["cases"] for case in TRACKING_CASES)]
+    rows = []
     for evaluated in shown:
-        cells = []
+        cells = [evaluated.label]
         for case in TRACKING_CASES:
             outcomes = evaluated.survived(case)
             survival = "-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size)
             errors = f"{evaluated.metric(case, 'lin_err'):.3f} / {evaluated.metric(case, 'yaw_err'):.3f}"
             cells.append(f"{errors} ({survival})")
-        lines.append(f"| {evaluated.label} | " + " | ".join(cells) + " |")
+        rows.append(cells)
     if not shown:
-        return [*lines[:4], "No entry is evaluated yet.", "", *figure_lines(path, out, drawn=False)]
+        return [*lines, "No entry is evaluated yet.", "", *figure_lines(path, out, drawn=False)]
     _plot_tracking(path, shown)
-    return [*lines, "", *figure_lines(path, out)]
+    header = ["agent", *(f"{case}: linear / yaw (survival)" for case in TRACKING_CASES)]
+    return [*lines, *table(header, rows), "", *figure_lines(path, out)]
 
 
 def _plot_tracking(path: Path, shown: Sequence[Evaluated]) -> None:
@@ -289,23 +288,19 @@ def risk_section(evaluations: Sequence[Evaluated], figures: Path, out: Path) -> 
         "pushes' force in grey. The value's units are each checkpoint's own reward normalization: compare "
         "its shape along the episode, not its level across agents.",
         "",
-        "| agent | "
-        + " | ".join(f"IQR {RISK_LABELS[c]}" for c in RISK_CASES)
-        + " | "
-        + " | ".join(f"beta {RISK_LABELS[c]}" for c in RISK_CASES)
-        + " | paper's IQR order |",
-        "|---|" + "---|" * (2 * len(RISK_CASES) + 1),
     ]
     traced = [
         e for e in evaluations if any(trace_path(e.entry.run, e.steps, c).is_file() for c in RISK_CASES)
     ]
+    if not traced:
+        return [*lines, "No risk trace is written yet.", "", *figure_lines(path, out, drawn=False)]
+    rows = []
     for evaluated in evaluations:
         cells = [f"{evaluated.metric(case, key):.3f}" for key in ("iqr", "beta") for case in RISK_CASES]
-        lines.append(f"| {evaluated.label} | " + " | ".join(cells) + f" | {_risk_order(evaluated)} |")
-    if not traced:
-        return [*lines[:4], "No risk trace is written yet.", "", *figure_lines(path, out, drawn=False)]
+        rows.append([evaluated.label, *cells, _risk_order(evaluated)])
     _plot_risk(path, traced)
-    return [*lines, "", *figure_lines(path, out)]
+    header = ["agent", *(f"{key} {RISK_LABELS[c]}" for key in ("IQR", "beta") for c in RISK_CASES)]
+    return [*lines, *table([*header, "paper's IQR order"], rows), "", *figure_lines(path, out)]
 
 
 RISK_ROWS = (
@@ -322,7 +317,7 @@ def _plot_risk(path: Path, traced: Sequence[Evaluated]) -> None:
     grey under the push's value."""
     from matplotlib.figure import Figure
 
-    from zerith_gym.robot import CONTROL_DT
+    from zerith_gym.zerith1.constants import CONTROL_DT
 
     figure = Figure(figsize=(12, 7.5), layout="constrained")
     panels = figure.subplots(len(RISK_ROWS), len(RISK_CASES), squeeze=False, sharex=True)

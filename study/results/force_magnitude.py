@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_huri.experiments.markdown import table
 from study.analyses.force_magnitude import (
     CASES,
     FIG4_CASES,
@@ -114,17 +115,16 @@ def _half_table(shown: Sequence[Evaluated], records: dict[int, dict[str, Any]]) 
         f"`< {min(scales):g}x`: below 50% already at the smallest. Beside it, survival at the paper's "
         "1x.",
         "",
-        "| agent | measured at | " + " | ".join(CASES) + " |",
-        "|---|---|" + "---|" * len(CASES),
     ]
+    rows = []
     for evaluated in shown:
         record = records[id(evaluated)]
-        cells = []
+        cells = [evaluated.label, f"{record['steps']:,}"]
         for case in CASES:
             at_paper = survived(record, HEADLINE, case).get(PAPER_SCALE)
             cells.append(_half(record, case) + (f" ({at_paper.mean():.2f})" if at_paper is not None else ""))
-        lines.append(f"| {evaluated.label} | {record['steps']:,} | " + " | ".join(cells) + " |")
-    return [*lines, ""]
+        rows.append(cells)
+    return [*lines, *table(["agent", "measured at", *CASES], rows), ""]
 
 
 def _readings_table(shown: Sequence[Evaluated], records: dict[int, dict[str, Any]]) -> list[str]:
@@ -134,20 +134,17 @@ def _readings_table(shown: Sequence[Evaluated], records: dict[int, dict[str, Any
         id(e): [table1_robot_means(records[id(e)], reading, PAPER_SCALE) for reading in readings]
         for e in shown
     }
-    rows = [e for e in shown if sum(m is not None for m in means[id(e)]) > 1]
-    if not rows:
+    agents = [e for e in shown if sum(m is not None for m in means[id(e)]) > 1]
+    if not agents:
         return []
-    lines = [
+    rows = [[e.label, *("-" if m is None else f"{m.mean():.3f}" for m in means[id(e)])] for e in agents]
+    return [
         "**Every reading, each agent** (the Table-1 mean at 1x, on the same robots as above; `-`: not "
         "measured): " + "; ".join(f"`{reading.key}`: {reading.label}" for reading in readings) + ".",
         "",
-        "| agent | " + " | ".join(f"`{reading.key}`" for reading in readings) + " |",
-        "|---|" + "---|" * len(readings),
+        *table(["agent", *(f"`{reading.key}`" for reading in readings)], rows),
+        "",
     ]
-    for evaluated in rows:
-        cells = ["-" if m is None else f"{m.mean():.3f}" for m in means[id(evaluated)]]
-        lines.append(f"| {evaluated.label} | " + " | ".join(cells) + " |")
-    return [*lines, ""]
 
 
 def _substitutes(evaluations: Sequence[Evaluated], records: dict[int, dict[str, Any]]) -> list[str]:
@@ -171,10 +168,8 @@ def _pair_lines(first: Evaluated, second: Evaluated, a: dict[str, Any], b: dict[
         f"**{first.label} minus {second.label}** ({first.entry.protocol}, seed {first.entry.seed}; measured "
         f"at {a['steps']:,} and {b['steps']:,} steps, on the same robots)",
         "",
-        f"| reading, Table-1 mean at 1x | {name} | {other} | difference [95%, t over robots] | who survives "
-        "more |",
-        "|---|---|---|---|---|",
     ]
+    rows = []
     ahead: dict[str, list[str]] = {}  # by the paper's forces read each way: who is ahead (point estimates)
     for reading in (*READINGS, *NOMINAL_READINGS):
         means = table1_robot_means(a, reading, PAPER_SCALE), table1_robot_means(b, reading, PAPER_SCALE)
@@ -183,35 +178,32 @@ def _pair_lines(first: Evaluated, second: Evaluated, a: dict[str, Any], b: dict[
         mean, low, high = table1_difference(a, b, reading)
         if reading in READINGS:
             ahead.setdefault(name if mean > 0 else other if mean < 0 else "neither", []).append(reading.key)
-        lines.append(
-            f"| {reading.label} | {means[0].mean():.3f} | {means[1].mean():.3f} | "
-            f"{difference_cell(mean, low, high)} | {verdict(low, high, name, other)} |"
-        )
+        cells = [reading.label, f"{means[0].mean():.3f}", f"{means[1].mean():.3f}"]
+        rows.append([*cells, difference_cell(mean, low, high), verdict(low, high, name, other)])
+    header = ["reading, Table-1 mean at 1x", name, other, "difference [95%, t over robots]"]
+    lines += table([*header, "who survives more"], rows)
     if len(ahead.keys() - {"neither"}) > 1:
         where = "; ".join(f"{who} ahead under {', '.join(keys)}" for who, keys in ahead.items())
         lines += ["", f"**The order depends on the reading** (Table-1 mean at 1x, point estimates): {where}."]
     elif ahead:
         lines += ["", "The same order under every reading of the test robot measured (point estimates)."]
-    lines += [
-        "",
-        f"| case | {name} 50% | {other} 50% | difference at 1x [95%] | largest difference: at, [95%] | "
-        "at 1x, a force per hand / foot | at 1x, 0.02-s pushes |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for case in CASES:
-        rows = paired_curve(survived(a, HEADLINE, case), survived(b, HEADLINE, case))
-        if not rows:
+        curve = paired_curve(survived(a, HEADLINE, case), survived(b, HEADLINE, case))
+        if not curve:
             continue
         halves = [_half(record, case) for record in (a, b)]
-        at_paper = next((row for row in rows if row[0] == PAPER_SCALE), None)
-        largest = max(rows, key=lambda row: (abs(row[1]), -row[0]))
+        at_paper = next((row for row in curve if row[0] == PAPER_SCALE), None)
+        largest = max(curve, key=lambda row: (abs(row[1]), -row[0]))
         cells = [
             difference_cell(*at_paper[1:]) if at_paper else "-",
             f"{largest[0]:g}x: {difference_cell(*largest[1:])}",
             *(_reading_cell(a, b, reading, case) for reading in (PER_BODY, SHORT_PUSH)),
         ]
-        lines.append(f"| {case} | {halves[0]} | {halves[1]} | " + " | ".join(cells) + " |")
-    return [*lines, ""]
+        rows.append([case, *halves, *cells])
+    header = ["case", f"{name} 50%", f"{other} 50%", "difference at 1x [95%]"]
+    header += ["largest difference: at, [95%]", "at 1x, a force per hand / foot", "at 1x, 0.02-s pushes"]
+    return [*lines, "", *table(header, rows), ""]
 
 
 def _half(record: dict[str, Any], case: str) -> str:

@@ -1,4 +1,5 @@
-"""Markdown pieces of the results page: step counts, links, figures, shares, differences."""
+"""Markdown pieces of the results page: step counts, links, figures, shares, differences (its tables:
+``sb3_huri.experiments.markdown``)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.experiments.markdown import interval_cell
 from sb3_huri.experiments.statistics import wilson_interval
 
 
@@ -45,13 +47,12 @@ def share_cell(share: float, n: int) -> str:
     """A survival share with its 95% Wilson interval."""
     if n == 0 or not math.isfinite(share):
         return "-"
-    low, high = wilson_interval(share, n)
-    return f"{share:.2f} [{low:.2f}, {high:.2f}]"
+    return interval_cell(share, *wilson_interval(share, n))
 
 
 def difference_cell(value: float, low: float, high: float) -> str:
     """A difference with its 95% interval, signs shown."""
-    return f"{value:+.3f} [{low:+.3f}, {high:+.3f}]"
+    return interval_cell(value, low, high, "+.3f")
 
 
 def verdict(low: float, high: float, first: str, second: str) -> str:

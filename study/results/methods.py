@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from sb3_huri.experiments.markdown import table
 from study.analyses.advantages import advantages_path, measured_record, summary
 from study.results.evaluations import (
     BASELINE,
@@ -54,18 +55,16 @@ def side_by_side_lines(evaluations: Sequence[Evaluated], cases: Sequence[str]) -
             f"**Methods side by side, {ppo.entry.protocol} protocol, seed {ppo.entry.seed}** ({agents}): "
             "each method minus PPO, and each minus HuRi, on the same robots (95% intervals as above).",
             "",
-            "| case | " + " | ".join(names) + " |",
-            "|---|" + "---|" * len(names),
         ]
+        rows = []
         for case in cases:
             cells = [case_difference(first, second, case) for first, second in comparisons]
             if all(cell is not None for cell in cells):
-                lines.append(f"| {case} | " + " | ".join(difference_cell(*c[2]) for c in cells) + " |")
+                rows.append([case, *(difference_cell(*c[2]) for c in cells)])
         means = [mean_difference(first, second) for first, second in comparisons]
         if all(math.isfinite(mean[0]) for mean in means):
-            row = " | ".join(difference_cell(*mean) for mean in means)
-            lines.append(f"| Table-1 mean (t over robots) | {row} |")
-        lines += ["", *_signal_lines(methods)]
+            rows.append(["Table-1 mean (t over robots)", *(difference_cell(*mean) for mean in means)])
+        lines += [*table(["case", *names], rows), "", *_signal_lines(methods)]
         for method in others:
             seed = f"({method.entry.protocol}, seed {method.entry.seed})"
             lines += [f"**{method.label} minus {reference.label}** {seed}", ""]

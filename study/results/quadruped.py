@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sb3_huri.experiments.markdown import table
 from sb3_huri.runner.curve import read_curve
 from study.campaign.final_evaluation import QUADRUPED_CASES
 from study.campaign.queue import CampaignEntry
@@ -129,15 +130,16 @@ def _table8(evaluations: Sequence[Evaluated], out: Path) -> list[str]:
         "Survival per case with its 95% Wilson interval, and the mean forward velocity (m/s) under each "
         "walking case's command:",
         "",
-        "| agent | " + " | ".join([*QUADRUPED_CASES, *(f"vx, {case}" for case in walking)]) + " |",
-        "|---|" + "---|" * (len(QUADRUPED_CASES) + len(walking)),
     ]
+    rows = []
     for evaluated in shown:
-        cells = [survival_cell(evaluated, case) for case in QUADRUPED_CASES]
+        cells = [f"[{evaluated.label}]({link(evaluated.path, out)})"]
+        cells += [survival_cell(evaluated, case) for case in QUADRUPED_CASES]
         for case in walking:
             vx = evaluated.metric(case, "vx")
             cells.append("-" if not np.isfinite(vx) else f"{vx:.2f}")
-        lines.append(f"| [{evaluated.label}]({link(evaluated.path, out)}) | " + " | ".join(cells) + " |")
+        rows.append(cells)
+    lines += table(["agent", *QUADRUPED_CASES, *(f"vx, {case}" for case in walking)], rows)
     paper = ", ".join(
         f"{case}: PPO {values['huri-baseline']:.0f}%, HuRi {values['huri']:.0f}%"
         for case, values in PAPER_TABLE8.items()

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from sb3_huri.experiments.markdown import table
 from sb3_huri.runner.files import read_json
 from study.analyses.risk_levels import (
     FALL_WINDOW_STEPS,
@@ -34,8 +35,8 @@ from study.campaign import progress
 from study.campaign.queue import CampaignEntry
 from study.results.markdown import millions
 from study.results.sections import heading
-from zerith_gym.robot import CONTROL_DT
-from zerith_gym.scenarios import TEST_COMMAND
+from zerith_gym.core.scenarios import TEST_COMMAND
+from zerith_gym.zerith1.constants import CONTROL_DT
 
 SCRIPT = "study/scripts/risk_levels.py"
 ROLE_NAMES = {"plane": "on the plane", "push": "under pushes", "uneven": "on uneven ground"}
@@ -224,8 +225,8 @@ def _number(value: float) -> str:
     return f"{value:.3f}" if math.isfinite(value) else "-"
 
 
-def _agent_lines(entry: CampaignEntry, path: Path) -> tuple[list[str], list[str]]:
-    """The agent's table rows and its sentence."""
+def _agent_lines(entry: CampaignEntry, path: Path) -> tuple[list[list[str]], list[str]]:
+    """The agent's table rows (their cells) and its sentence."""
     data = read_json(path, "an agent's risk levels")
     data.setdefault("roles", ROLE_CASES.get(data.get("robot", "zerith1"), ROLE_CASES["zerith1"]))
     cell = agent_cell(entry, data)
@@ -233,7 +234,7 @@ def _agent_lines(entry: CampaignEntry, path: Path) -> tuple[list[str], list[str]
     for case in _ordered_cases(data):
         values = data["cases"][case]
         cells = [_number(values.get(key, math.nan)) for key, _ in TABLE_COLUMNS]
-        rows.append(f"| {cell} | `{case}` | " + " | ".join(cells) + " |")
+        rows.append([cell, f"`{case}`", *cells])
     evaluated = evaluated_steps(entry)
     measured = int(data["steps"])
     note = "" if evaluated in (None, measured) else f" (its final evaluation: {millions(evaluated)})"
@@ -280,8 +281,7 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
     family = [entry for entry in entries if risk_family(entry.method)]
     if not family:
         return [*lines, "No entry of the queue has a method that reads the IQR band.", ""]
-    header = ["agent", "scenario", *(name for _, name in TABLE_COLUMNS)]
-    table = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    rows: list[list[str]] = []
     sentences, unmeasured, untrained, measured = [], [], [], []
     for entry in family:
         path = entry_file(entry, entries)
@@ -293,11 +293,12 @@ def risk_levels_section(entries: Sequence[CampaignEntry]) -> list[str]:
         if path is None:
             continue
         measured.append(read_json(path, "an agent's risk levels"))
-        rows, sentence = _agent_lines(entry, path)
-        table += rows
+        agent_rows, sentence = _agent_lines(entry, path)
+        rows += agent_rows
         sentences += sentence
     if sentences:
-        lines += [*table, "", *summary_lines(measured), *sentences, ""]
+        header = ["agent", "scenario", *(name for _, name in TABLE_COLUMNS)]
+        lines += [*table(header, rows), "", *summary_lines(measured), *sentences, ""]
     if unmeasured:
         lines += ["Not measured yet (each command measures the entry's checkpoint):", "", *unmeasured, ""]
     if untrained:

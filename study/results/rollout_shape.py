@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sb3_huri.experiments.markdown import table
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.runner.curve import read_curve
 from sb3_huri.runner.robustness import read_rows
@@ -89,8 +90,9 @@ def _checkpoints(wide: CampaignEntry, reference: CampaignEntry) -> list[int]:
     return list(range(every, reached + 1, every))
 
 
-def _pair_rows(wide: CampaignEntry, reference: CampaignEntry) -> tuple[list[str], float]:
-    """The pair's table rows, and the return difference (wide minus reference) at its last checkpoint."""
+def _pair_rows(wide: CampaignEntry, reference: CampaignEntry) -> tuple[list[list[str]], float]:
+    """The pair's table rows (their cells), and the return difference (wide minus reference) at its last
+    checkpoint."""
     returns = [smoothed_curve(run) for run in (wide.run, reference.run)]
     falls = [smoothed_curve(run, column="fall_rate") for run in (wide.run, reference.run)]
     rows, difference, every = [], math.nan, wide.defaults.robustness_every
@@ -99,11 +101,9 @@ def _pair_rows(wide: CampaignEntry, reference: CampaignEntry) -> tuple[list[str]
         w_fall, r_fall = (_value_at(curve, step) for curve in falls)
         w_table1, r_table1 = (_table1_at(run, step, every) for run in (wide.run, reference.run))
         difference = w_return - r_return
-        rows.append(
-            f"| {method_label(wide.method)} | {wide.seed} | {millions(step)} | {_cell(w_return, 1)} | "
-            f"{_cell(r_return, 1)} | {_cell(w_fall, 2)} | {_cell(r_fall, 2)} | "
-            f"{_cell(w_table1, 3)} | {_cell(r_table1, 3)} |"
-        )
+        cells = [_cell(w_return, 1), _cell(r_return, 1), _cell(w_fall, 2), _cell(r_fall, 2)]
+        cells += [_cell(w_table1, 3), _cell(r_table1, 3)]
+        rows.append([method_label(wide.method), str(wide.seed), millions(step), *cells])
     return rows, difference
 
 
@@ -188,24 +188,22 @@ def rollout_shape_section(
         "",
     ]
     pairs = matched_runs(entries)
-    table, differences, last_steps = [], [], []
+    shown, differences, last_steps = [], [], []
     for wide, reference in pairs:
         rows, difference = _pair_rows(wide, reference)
-        table += rows
+        shown += rows
         if rows:
             differences.append(difference)
             last_steps.append(_checkpoints(wide, reference)[-1])
-    if not table:
+    if not shown:
         return [*lines, "No `robust-256` run has reached a checkpoint beside its 32-robot seed yet.", "",
                 *figure_lines(path, out, drawn=False)]  # fmt: skip
     step_note = f"at {', '.join(sorted({millions(s) for s in last_steps}))}"
     _plot_shapes(path, pairs)
+    header = ["method", "seed", "steps", "return 256 x 64", "return 32 x 512", "fall rate 256"]
     return [
         *lines,
-        "| method | seed | steps | return 256 x 64 | return 32 x 512 | fall rate 256 | fall rate 32 | "
-        "Table-1 256 | Table-1 32 |",
-        "|---|---|---|---|---|---|---|---|---|",
-        *table,
+        *table([*header, "fall rate 32", "Table-1 256", "Table-1 32"], shown),
         "",
         f"- {_finding(differences, step_note)}",
         *_speed_lines(pairs, out),

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from sb3_huri.experiments import paper
+from sb3_huri.experiments.markdown import interval_cell, table
 from sb3_huri.experiments.statistics import mean_ci, paired_difference_interval
 from sb3_huri.runner.evaluation import TABLE1_SCENARIOS
 from sb3_huri.runner.files import read_json
@@ -151,18 +152,17 @@ def status_section(
         "the run's sessions (`state.json`) up to the evaluated checkpoint once the entry is evaluated, up to "
         "now otherwise. A run folder may serve several entries (trained to one target, later on to another).",
         "",
-        "| entry | protocol | method | seed | run | steps / target | training h | hardware | state |",
-        "|---|---|---|---|---|---|---|---|---|",
     ]
     by_entry = {e.entry.name: e for e in evaluations}
+    rows = []
     for entry in entries:
         steps, hours, hardware, state = _entry_status(entry, by_entry.get(entry.name))
-        lines.append(
-            f"| {entry.name} | {entry.protocol} | {method_label(entry.method)} | {entry.seed} | "
-            f"`{link(entry.run, out)}` | {steps:,} / {entry.steps:,} | "
-            f"{hours:.2f} | {'; '.join(hardware) or '-'} | {state} |"
-        )
-    return [*lines, ""]
+        run = f"`{link(entry.run, out)}`"
+        cells = [entry.name, entry.protocol, method_label(entry.method), str(entry.seed), run]
+        cells += [f"{steps:,} / {entry.steps:,}", f"{hours:.2f}", "; ".join(hardware) or "-", state]
+        rows.append(cells)
+    header = ["entry", "protocol", "method", "seed", "run", "steps / target", "training h", "hardware"]
+    return [*lines, *table([*header, "state"], rows), ""]
 
 
 def _clusters(group: Sequence[Evaluated]) -> list[list[Evaluated]]:
@@ -183,16 +183,16 @@ def survival_cell(evaluated: Evaluated, case: str) -> str:
     return "-" if outcomes is None else share_cell(float(outcomes.mean()), outcomes.size)
 
 
-def _table1_row(evaluated: Evaluated) -> str:
+def _table1_row(evaluated: Evaluated) -> list[str]:
     """One agent's row of the Table-1 analog: each case with its Wilson interval, the mean with its t one."""
     cells = [survival_cell(evaluated, case) for case in SURVIVAL_CASES]
     mean, low, high = table1_mean(evaluated)
-    cells.insert(len(TABLE1_SCENARIOS), "-" if math.isnan(mean) else f"{mean:.3f} [{low:.3f}, {high:.3f}]")
+    cells.insert(len(TABLE1_SCENARIOS), "-" if math.isnan(mean) else interval_cell(mean, low, high, ".3f"))
     entry = evaluated.entry
-    return f"| {entry.name} | {entry.seed} | {evaluated.steps:,} | " + " | ".join(cells) + " |"
+    return [entry.name, str(entry.seed), f"{evaluated.steps:,}", *cells]
 
 
-def _seed_row(cluster: Sequence[Evaluated]) -> str:
+def _seed_row(cluster: Sequence[Evaluated]) -> list[str]:
     """Mean over seeds of one step, with the half width of its 95% t interval over the seeds."""
     cells = []
     for case in SURVIVAL_CASES:
@@ -202,17 +202,17 @@ def _seed_row(cluster: Sequence[Evaluated]) -> str:
     cells.insert(len(TABLE1_SCENARIOS), f"{mean:.3f} ± {half:.3f} ({n})" if n > 1 else "-")
     seeds = ", ".join(str(seed) for seed in sorted(e.entry.seed for e in cluster))
     steps = f"~{cluster[0].steps:,}"
-    return f"| **mean over seeds {seeds}** | - | {steps} | " + " | ".join(cells) + " |"
+    return [f"**mean over seeds {seeds}**", "-", steps, *cells]
 
 
-def _paper_row(method: str) -> str | None:
+def _paper_row(method: str) -> list[str] | None:
     """The paper's Table-1 row of ``method`` (None where the paper has none)."""
     reference = paper.TABLE1.get(method)
     if reference is None:
         return None
     cells = [f"{reference[case]:.3f}" for case in TABLE1_SCENARIOS]
     cells += [f"{np.mean(list(reference.values())):.3f}", "-"]
-    return f"| *paper: {method_label(method)}* | 5 seeds | - | " + " | ".join(cells) + " |"
+    return [f"*paper: {method_label(method)}*", "5 seeds", "-", *cells]
 
 
 def table1_section(evaluations: Sequence[Evaluated]) -> list[str]:
@@ -237,19 +237,14 @@ def table1_section(evaluations: Sequence[Evaluated]) -> list[str]:
         group = [e for e in evaluations if e.entry.protocol == protocol]
         if not group:
             continue
-        lines += [
-            f"### {protocol} protocol",
-            "",
-            "| " + " | ".join(header) + " |",
-            "|---" * len(header) + "|",
-        ]
+        rows = []
         for method in dict.fromkeys(e.entry.method for e in group):
             own = [e for e in group if e.entry.method == method]
-            lines += [_table1_row(e) for e in own]
-            lines += [_seed_row(cluster) for cluster in _clusters(own) if len(cluster) > 1]
+            rows += [_table1_row(e) for e in own]
+            rows += [_seed_row(cluster) for cluster in _clusters(own) if len(cluster) > 1]
             reference = _paper_row(method)
-            lines += [reference] if reference else []
-        lines.append("")
+            rows += [reference] if reference else []
+        lines += [f"### {protocol} protocol", "", *table(header, rows), ""]
     return lines
 
 
@@ -284,28 +279,23 @@ def pair_table(
     """Per case of ``cases`` both hold: both shares, ``first - second`` with Newcombe's paired 95% interval,
     the robots only one of them survived; then, where ``cases`` and both evaluations hold the six Table-1
     cases, the Table-1 mean's paired difference (t over the robots)."""
-    lines = [
-        f"| case | {first_name} | {second_name} | difference [95%] | only {first_name} survived | "
-        f"only {second_name} survived | reading |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for case in cases:
         paired = case_difference(first, second, case)
         if paired is None:
             continue
         a, b, (difference, low, high) = paired
-        reading = verdict(low, high, first_name, second_name)
-        lines.append(
-            f"| {case} | {a.mean():.2f} | {b.mean():.2f} | {difference_cell(difference, low, high)} | "
-            f"{int(np.sum(a & ~b))} | {int(np.sum(~a & b))} | {reading} |"
-        )
+        cells = [case, f"{a.mean():.2f}", f"{b.mean():.2f}", difference_cell(difference, low, high)]
+        cells += [str(np.sum(a & ~b)), str(np.sum(~a & b)), verdict(low, high, first_name, second_name)]
+        rows.append(cells)
     mean, low, high = mean_difference(first, second)
     if set(TABLE1_SCENARIOS) <= set(cases) and math.isfinite(mean):
-        lines.append(
-            f"| Table-1 mean (t over robots) | {table1_mean(first)[0]:.3f} | {table1_mean(second)[0]:.3f} | "
-            f"{difference_cell(mean, low, high)} | - | - | {verdict(low, high, first_name, second_name)} |"
-        )
-    return [*lines, ""]
+        means = [f"{table1_mean(first)[0]:.3f}", f"{table1_mean(second)[0]:.3f}"]
+        cells = ["Table-1 mean (t over robots)", *means]
+        cells += [difference_cell(mean, low, high), "-", "-", verdict(low, high, first_name, second_name)]
+        rows.append(cells)
+    header = ["case", first_name, second_name, "difference [95%]", f"only {first_name} survived"]
+    return [*table([*header, f"only {second_name} survived", "reading"], rows), ""]
 
 
 def _waiting_pairs(entries: Sequence[CampaignEntry]) -> list[str]:
@@ -430,23 +420,18 @@ def _seed_differences(found: Sequence[tuple[Evaluated, Evaluated]]) -> list[str]
     ]
     for comparison in comparisons:
         name = method_label(comparison.method)
+        rows = [
+            [first.entry.seed, f"{first.steps:,} / {second.steps:,}", difference_cell(*difference)]
+            for (first, second), difference in zip(comparison.pairs, comparison.differences, strict=True)
+        ]
+        low, high = comparison.mean - comparison.half, comparison.mean + comparison.half
+        mean = difference_cell(comparison.mean, low, high)
+        rows.append([f"**mean over {len(comparison.pairs)} seeds** (t over seeds)", "-", mean])
+        header = ["seed", f"steps ({name} / PPO)", "difference, Table-1 mean [95% over robots]"]
         lines += [
             f"**{name} minus PPO over seeds** ({comparison.protocol} protocol)",
             "",
-            f"| seed | steps ({name} / PPO) | difference, Table-1 mean [95% over robots] |",
-            "|---|---|---|",
-        ]
-        for (first, second), (difference, low, high) in zip(
-            comparison.pairs, comparison.differences, strict=True
-        ):
-            lines.append(
-                f"| {first.entry.seed} | {first.steps:,} / {second.steps:,} | "
-                f"{difference_cell(difference, low, high)} |"
-            )
-        low, high = comparison.mean - comparison.half, comparison.mean + comparison.half
-        lines += [
-            f"| **mean over {len(comparison.pairs)} seeds** (t over seeds) | - | "
-            f"{difference_cell(comparison.mean, low, high)} |",
+            *table(header, rows),
             "",
             f"- {comparison.sentence()}",
             "",

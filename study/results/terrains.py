@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from sb3_huri.experiments import paper
+from sb3_huri.experiments.markdown import table
 from sb3_huri.runner.evaluation import TERRAIN_SCENARIOS
 from study.campaign.queue import PROTOCOLS
 from study.results.evaluations import Evaluated, method_label, pairs
@@ -39,19 +40,16 @@ def terrain_section(evaluations: Sequence[Evaluated]) -> list[str]:
     ]
     if not evaluations:
         return [*lines, "No Zerith-1 entry is evaluated yet.", ""]
-    header = ["agent", "protocol", "seed", "steps", *TERRAIN_SCENARIOS]
-    lines += ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    rows = []
     for protocol in PROTOCOLS:
         for evaluated in (e for e in evaluations if e.entry.protocol == protocol):
             cells = [survival_cell(evaluated, case) for case in TERRAIN_SCENARIOS]
             entry = evaluated.entry
-            agent = f"| {entry.name} | {protocol} | {entry.seed} | {evaluated.steps:,} | "
-            lines.append(agent + " | ".join(cells) + " |")
+            rows.append([entry.name, protocol, str(entry.seed), f"{evaluated.steps:,}", *cells])
     for method, reference in paper.TERRAINS.items():
         cells = [f"{reference[case]:.3f}" if case == TABLE9_CASE else "-" for case in TERRAIN_SCENARIOS]
-        agent = f"| *paper: {method_label(method)}* | terrains | 4 seeds | - | "
-        lines.append(agent + " | ".join(cells) + " |")
-    lines.append("")
+        rows.append([f"*paper: {method_label(method)}*", "terrains", "4 seeds", "-", *cells])
+    lines += [*table(["agent", "protocol", "seed", "steps", *TERRAIN_SCENARIOS], rows), ""]
     found = pairs(evaluations)
     for first, second in found:
         lines += method_pair_lines(first, second, TERRAIN_SCENARIOS)

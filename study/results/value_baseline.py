@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from sb3_huri.experiments.markdown import table
 from study.analyses.value_baseline import PRE_FALL_STEPS, measured_record, value_baseline_path
 from study.campaign.queue import CampaignEntry
 from study.results.markdown import millions
@@ -21,12 +22,12 @@ def _range(record: dict, name: str) -> str:
     return f"{record['explained_variance'][name]:.3f} [{min(spread):.2f}, {max(spread):.2f}]"
 
 
-def _row(entry: CampaignEntry, steps: int, record: dict) -> str:
+def _row(entry: CampaignEntry, steps: int, record: dict) -> list[str]:
     """One agent's row: states, both explained variances and their gap, the risk level before falls."""
     settings = record["settings"]
     states = settings["rollouts"] * settings["robots"] * settings["rollout_steps"]
     explained = record["explained_variance"]
-    cells = [f"{states:,}", _range(record, "value")]
+    cells = [f"{entry.name} @ {millions(steps)}", entry.method, f"{states:,}", _range(record, "value")]
     if "atom_mean" in explained:
         cells += [_range(record, "atom_mean"), f"{explained['value'] - explained['atom_mean']:+.3f}"]
     else:
@@ -35,7 +36,7 @@ def _row(entry: CampaignEntry, steps: int, record: dict) -> str:
     cells.append("-" if before is None else f"{before:+.2f}")
     cells.append("-" if elsewhere is None else f"{elsewhere:+.2f}")
     cells.append(str(record["falls"]))
-    return f"| {entry.name} @ {millions(steps)} | {entry.method} | " + " | ".join(cells) + " |"
+    return cells
 
 
 def _measured(entries: Sequence[CampaignEntry]) -> list[tuple[CampaignEntry, int, dict]]:
@@ -102,14 +103,10 @@ def value_baseline_section(entries: Sequence[CampaignEntry]) -> list[str]:
         if evaluated_steps(entry) is not None and entry.name not in done
     ]
     if rows:
-        lines += [
-            "| agent | method | states | explained by its value (V_beta; PPO: V) [rollouts] | explained by "
-            "the atoms' mean [rollouts] | value minus atoms' mean | risk level before a fall | risk level "
-            "elsewhere | falls |",
-            "|---|---|---|---|---|---|---|---|---|",
-            *rows,
-            "",
-        ]
+        header = ["agent", "method", "states", "explained by its value (V_beta; PPO: V) [rollouts]"]
+        header += ["explained by the atoms' mean [rollouts]", "value minus atoms' mean"]
+        header += ["risk level before a fall", "risk level elsewhere", "falls"]
+        lines += [*table(header, rows), ""]
     else:
         lines += ["No agent's value is measured as a baseline yet.", ""]
     if missing:

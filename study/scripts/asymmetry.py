@@ -1,11 +1,11 @@
 """How far an agent's actor is from acting left-right symmetrically, on the observations of its own walk.
 
-Zerith-1 is mirror-symmetric (`zerith_gym.symmetry`): a symmetric policy acts on the mirrored observation as
-the mirror of its action, and bears a push from the right as it bears one from the left. This runs the
-agent's deterministic policy on each case (`scenario` or `scenario@vx`, as `sb3_huri.runner.evaluation`
-reads cases) and reports `sb3_huri.common.mirror.mirror_loss` over the visited observations (the mean
-squared distance between the action on the mirrored observation and the mirrored action; 0 is symmetric),
-next to the mean squared action, the scale it compares with.
+Zerith-1 is mirror-symmetric (`zerith_gym.zerith1.symmetry`): a symmetric policy acts on the mirrored
+observation as the mirror of its action, and bears a push from the right as it bears one from the left. This
+runs the agent's deterministic policy on each case (`scenario` or `scenario@vx`, as
+`sb3_huri.runner.evaluation` reads cases) and reports `sb3_huri.common.mirror.mirror_loss` over the visited
+observations (the mean squared distance between the action on the mirrored observation and the mirrored
+action; 0 is symmetric), next to the mean squared action, the scale it compares with.
 
     python -m study.scripts.asymmetry runs/huri/Zerith1-v0_1
     python -m study.scripts.asymmetry runs/huri/Zerith1-v0_2 runs/huri/Zerith1-v0_1 --cases nominal@1.0
@@ -24,7 +24,7 @@ import zerith_gym
 from sb3_huri.common.mirror import NormalizedMirror, mirror_loss
 from sb3_huri.runner.evaluation import parse_case
 from sb3_huri.runner.folder import load_run
-from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
+from zerith_gym.zerith1.symmetry import ACTION_MIRROR, POLICY_MIRROR
 
 
 def asymmetry(

@@ -35,7 +35,7 @@ import torch as th
 
 from study.analyses.agents import evaluate_agents
 from zerith_gym import ZERITH1_ID
-from zerith_gym.scenarios import SCENARIOS
+from zerith_gym.core.scenarios import SCENARIOS
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = (

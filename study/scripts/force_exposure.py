@@ -22,7 +22,7 @@ import zerith_gym
 from sb3_huri.runner.folder import load_run
 from study.analyses.force_exposure import exposure, exposure_table, training_scenario
 from zerith_gym import ZERITH1_ID
-from zerith_gym.scenarios import SCENARIOS
+from zerith_gym.core.scenarios import SCENARIOS
 
 
 def main() -> None:

@@ -37,8 +37,8 @@ from sb3_huri.runner.evaluation import HoldStance
 from sb3_huri.runner.folder import load_run
 from study.analyses.impulses import PUSH_STEPS, print_envelope, print_table1
 from zerith_gym import ZERITH1_ID
-from zerith_gym.disturbances import FORCE_TARGETS
-from zerith_gym.scenarios import TEST_COMMAND
+from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
+from zerith_gym.core.scenarios import TEST_COMMAND
 
 
 def main() -> None:
@@ -46,7 +46,7 @@ def main() -> None:
     formatter = argparse.RawDescriptionHelpFormatter
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=formatter)
     parser.add_argument("agent", type=Path, help="a run folder in RL Zoo's layout")
-    parser.add_argument("--targets", nargs="+", default=list(FORCE_TARGETS), choices=list(FORCE_TARGETS))
+    parser.add_argument("--targets", nargs="+", default=list(FORCE_TARGET_NAMES), choices=FORCE_TARGET_NAMES)
     parser.add_argument("--forces", type=float, nargs="+", default=[100.0, 150.0, 200.0, 250.0, 300.0])
     parser.add_argument("--phases", type=int, default=8, help="push times per cell, over one gait period")
     parser.add_argument("--robots", type=int, default=1, help="episodes per phase; robot i seeded seed + i")

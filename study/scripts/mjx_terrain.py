@@ -20,9 +20,9 @@ import numpy as np
 
 import zerith_gym
 from sb3_huri.runner.folder import load_run
-from zerith_gym.scenarios import Scenario
-from zerith_gym.terrain import tile_terrain
-from zerith_gym.tiles import PAPER_TILE_KINDS
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.terrain.ground import tile_terrain
+from zerith_gym.terrain.tiles import PAPER_TILE_KINDS
 
 ROOT = Path(__file__).resolve().parent.parent
 

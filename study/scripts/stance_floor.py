@@ -19,8 +19,8 @@ from dataclasses import replace
 import numpy as np
 
 from sb3_huri.runner.evaluation import TABLE1_SCENARIOS, HoldStance, evaluate
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.scenarios import SCENARIOS, Scenario
+from zerith_gym.core.randomization import NOMINAL
+from zerith_gym.core.scenarios import SCENARIOS, Scenario
 
 RANGES = ("added_mass", "friction", "com_offset")
 """The test ranges the Table-1 scenarios widen beyond the nominal robot."""

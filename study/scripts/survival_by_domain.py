@@ -13,7 +13,7 @@ a Table-1 share mixes easy robots with hard ones. This runs `--robots` episodes 
     python -m study.scripts.survival_by_domain runs/huri/Zerith1-v0_3 --cases continuous-feet --robots 200
 
 The friction binned and correlated is the drawn sole material; a sole slides at its mean with the ground's 1
-(`zerith_gym.physics.contact_friction`). The work is done by `study.analyses.domain_survival`.
+(`zerith_gym.core.physics.contact_friction`). The work is done by `study.analyses.domain_survival`.
 """
 
 from __future__ import annotations

@@ -10,9 +10,9 @@ import numpy as np
 import zerith_gym
 from sb3_huri.runner.evaluation import HoldStance
 from study.analyses.force_exposure import exposure
-from zerith_gym.disturbances import TARGET_INDEX
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.scenarios import SCENARIOS, scaled_scenario
+from zerith_gym.core.disturbances import TARGET_INDEX
+from zerith_gym.core.randomization import NOMINAL
+from zerith_gym.core.scenarios import SCENARIOS, scaled_scenario
 
 
 def test_robot_steps_are_counted_under_the_force_of_each_robots_table_step() -> None:

@@ -32,11 +32,12 @@ from study.analyses.force_magnitude import (
 from study.campaign.queue import load_queue
 from study.results.evaluations import load_evaluations
 from study.results.force_magnitude import _pair_lines, force_magnitude_section
-from zerith_gym import robot
-from zerith_gym.disturbances import ForceSchedule
-from zerith_gym.envs.zerith1 import Zerith1Env
-from zerith_gym.scenarios import SCENARIOS
-from zerith_gym.task import HUMANOID_DRAWS, scenario_arrays
+from zerith_gym.core.disturbances import ForceSchedule
+from zerith_gym.core.scenarios import SCENARIOS
+from zerith_gym.core.task import scenario_arrays
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1.env import Zerith1Env
+from zerith_gym.zerith1.task import HUMANOID_DRAWS, HUMANOID_TASK
 
 ENV = "Zerith1-v0"
 
@@ -111,7 +112,7 @@ def test_the_mjx_backend_refuses_a_per_body_schedule() -> None:
 @pytest.mark.parametrize("hold", [1, 5])
 def test_a_push_lasts_the_hold_time_asked_for(hold: int) -> None:
     scenario = stressed("sudden-feet", 1.0, Reading(hold_steps=hold))
-    acting = np.flatnonzero(scenario_arrays(scenario, None, 1000).force_due[:1000, 1])
+    acting = np.flatnonzero(scenario_arrays(scenario, None, 1000, HUMANOID_TASK).force_due[:1000, 1])
     assert acting.tolist() == [t for start in range(100, 1000, 100) for t in range(start, start + hold)]
     reported, applied = _forces(scenario, 100 + hold + 2)
     magnitude = np.linalg.norm(reported, axis=1)

@@ -10,8 +10,8 @@ import numpy as np
 
 from sb3_huri.runner.evaluation import HoldStance, evaluate
 from study.analyses import impulses as envelope
-from zerith_gym.randomization import NOMINAL
-from zerith_gym.scenarios import SCENARIOS
+from zerith_gym.core.randomization import NOMINAL
+from zerith_gym.core.scenarios import SCENARIOS
 
 
 def test_a_standing_robot_bears_a_light_push_and_falls_only_after_a_hard_one() -> None:

@@ -8,7 +8,7 @@ import pytest
 
 from sb3_huri.runner.evaluation import HoldStance, evaluate
 from study.analyses import domain_survival as survival
-from zerith_gym.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
+from zerith_gym.core.randomization import DOMAIN_VECTOR_SIZE, TEST_FRICTION, DomainParams
 
 
 def test_each_robot_reports_the_parameters_it_drew() -> None:

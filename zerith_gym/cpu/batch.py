@@ -2,7 +2,7 @@
 
 `Zerith1Env` (gymnasium, n = 1), `ZerithVecEnv` (SB3 VecEnv, n robots) and each worker process of a
 `ZerithVecEnv` are thin interfaces over `ZerithBatch`, so a batch of n robots runs exactly the code of n
-single envs. Their options and spaces are in `zerith_gym.options`, the per-step infos in `zerith_gym.infos`.
+single envs. Their options are in `zerith_gym.options`, the spaces and per-step infos in `zerith_gym.core`.
 """
 
 from __future__ import annotations
@@ -11,19 +11,18 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
+from zerith_gym.core.contract import BatchStep, check_num_robots, check_scenario_change
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.task import ZerithTask, task_constants
 from zerith_gym.cpu.simulator import Simulator
-from zerith_gym.options import ZerithOptions
-from zerith_gym.rewards import resolve_reward_weights
-from zerith_gym.scenarios import Scenario
-from zerith_gym.task import ZerithTask, task_constants
-from zerith_gym.terrain import Terrain
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.options import ZerithOptions, resolve_reward_weights
+from zerith_gym.terrain.ground import Terrain
+from zerith_gym.terrain.levels import LevelRule
 
 
 class ZerithBatch:
     """`num_robots` robots: their simulations (`sim`) and task state (`task`), reset and stepped together in
-    this process (the robots contract, `zerith_gym.contract.Robots`; `step` may also leave ended episodes
+    this process (the robots contract, `zerith_gym.core.contract.Robots`; `step` may also leave ended episodes
     for the caller to reset, as the single env does). `first_robot`: the env-wide index of the first of
     them (a worker's slice starts later), which sets their tiles on a tile terrain."""
 
@@ -35,7 +34,7 @@ class ZerithBatch:
         self.scenario = options.resolved_scenario
         self.terrain = Terrain(self.scenario.terrain, seed=options.terrain_seed)
         task = options.task
-        self.sim = Simulator(num_robots, self.terrain, physics_threads, task.robot)
+        self.sim = Simulator(num_robots, self.terrain, task.robot, physics_threads)
         model = self.sim.models[0]
         self.task = ZerithTask(
             num_robots,
@@ -62,7 +61,7 @@ class ZerithBatch:
         self.task.set_scenario(scenario, self.options.fixed_command(scenario))
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
-        """Move robots between terrain levels by `rule` as episodes end (`zerith_gym.terrain_levels`)."""
+        """Move robots between terrain levels by `rule` as episodes end (`zerith_gym.terrain.levels`)."""
         self.task.set_level_rule(rule)
 
     def seed(self, seeds: Mapping[int, np.random.Generator]) -> None:

@@ -23,12 +23,11 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from zerith_gym.disturbances import FORCE_TARGET_NAMES
-from zerith_gym.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_states
-from zerith_gym.randomization import DomainParams
-from zerith_gym.robot import ZERITH1
-from zerith_gym.robot_spec import RobotSpec
-from zerith_gym.terrain import Terrain
+from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
+from zerith_gym.core.physics import BAD_STATE_WARNINGS, NominalModel, apply_domain, build_model, reset_states
+from zerith_gym.core.randomization import DomainParams
+from zerith_gym.core.spec import RobotSpec
+from zerith_gym.terrain.ground import Terrain
 
 Segments = list[tuple[int, int]]
 """Runs of physics sub-steps applying the same action: (lag in control steps, number of sub-steps)."""
@@ -75,9 +74,7 @@ class Simulator:
     `threads`: how many threads step the robots' physics (at most one per robot); `robot`: which robot.
     """
 
-    def __init__(
-        self, num_robots: int, terrain: Terrain, threads: int = 1, robot: RobotSpec = ZERITH1
-    ) -> None:
+    def __init__(self, num_robots: int, terrain: Terrain, robot: RobotSpec, threads: int = 1) -> None:
         if not isinstance(threads, int | np.integer) or threads < 1:
             raise ValueError(f"the number of physics threads must be a positive integer, got {threads!r}")
         model = build_model(terrain, robot)

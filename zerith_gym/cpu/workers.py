@@ -42,13 +42,12 @@ from typing import Any
 
 import numpy as np
 
-from zerith_gym.contract import BatchStep, check_scenario_change
+from zerith_gym.core.contract import BatchStep, check_scenario_change
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.task import LocomotionTask, StepOutput
 from zerith_gym.cpu.batch import ZerithBatch
-from zerith_gym.humanoid_task import HUMANOID_TASK
 from zerith_gym.options import ZerithOptions
-from zerith_gym.scenarios import Scenario
-from zerith_gym.task import LocomotionTask, StepOutput
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.terrain.levels import LevelRule
 
 MIN_ROBOTS_PER_WORKER = 8
 """Below this many robots per slice the hand-over costs more than the parallel work gains."""
@@ -105,8 +104,9 @@ def step_columns(task: LocomotionTask) -> tuple[Columns, Columns]:
     return out, batch
 
 
-STEP_OUTPUT_COLUMNS, BATCH_STEP_COLUMNS = step_columns(HUMANOID_TASK)
-"""Zerith-1's columns (`step_columns`)."""
+STEP_OUTPUT_COLUMNS = StepOutput._fields
+BATCH_STEP_COLUMNS = tuple(name for name in BatchStep._fields if name not in ("out", "reward_names"))
+"""The fields of `StepOutput` and the array fields of `BatchStep` the shared block holds (`step_columns`)."""
 _OUT = "out."
 """Prefix of the shared arrays of `StepOutput` fields."""
 
@@ -224,7 +224,7 @@ def _serve(
 
 class WorkerPool:
     """`num_robots` robots in `workers + 1` contiguous slices: the first stepped by the calling process, the
-    others by `workers` worker processes (the robots contract, `zerith_gym.contract.Robots`)."""
+    others by `workers` worker processes (the robots contract, `zerith_gym.core.contract.Robots`)."""
 
     def __init__(
         self, num_robots: int, options: ZerithOptions, workers: int, physics_threads: int = 1
@@ -298,7 +298,7 @@ class WorkerPool:
         self.scenario = scenario
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
-        """Every slice moves its robots between terrain levels by `rule` (`zerith_gym.terrain_levels`)."""
+        """Every slice moves its robots between terrain levels by `rule` (`zerith_gym.terrain.levels`)."""
         self._local.set_level_rule(rule)  # checks the rule against the terrain before the workers see it
         message = pickle.dumps(("level rule", rule))
         self._run(dict.fromkeys(range(1, len(self._rows)), message), "setting the terrain curriculum")

@@ -1,8 +1,8 @@
 """n robots on MJX (Zerith-1 or the quadruped): the task state as a JAX pytree, jitted reset and step.
 
-The task is the CPU backend's: `reset_values`, `begin_step`, `end_step` from `zerith_gym.task` and the
+The task is the CPU backend's: `reset_values`, `begin_step`, `end_step` from `zerith_gym.core.task` and the
 robot's `LocomotionTask` (its `observe` and `judge`), on the same `TaskState` record, the domain fields from
-`zerith_gym.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
+`zerith_gym.core.physics.domain_model_fields`, all traced with jax.numpy. What differs is only what JAX
 needs: the state is an immutable pytree (`MjxState`) replaced every step, randomness comes from one JAX
 key split every step (not one numpy generator per robot), and robots whose episode ended are reset
 inside the same jitted step (when any did, every robot's reset is computed and selected where one did).
@@ -18,14 +18,12 @@ import jax.numpy as jnp
 import numpy as np
 from mujoco import mjx
 
-from zerith_gym.contract import BatchStep, check_num_robots, check_scenario_change
-from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
-from zerith_gym.options import ZerithOptions
-from zerith_gym.physics import domain_model_fields
-from zerith_gym.randomization import DomainParams
-from zerith_gym.rewards import resolve_reward_weights
-from zerith_gym.scenarios import Scenario
-from zerith_gym.task import (
+from zerith_gym.core.contract import BatchStep, check_num_robots, check_scenario_change
+from zerith_gym.core.physics import domain_model_fields
+from zerith_gym.core.randomization import DomainParams
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.spec import read_sensors
+from zerith_gym.core.task import (
     ScenarioArrays,
     TaskConstants,
     TaskState,
@@ -36,8 +34,10 @@ from zerith_gym.task import (
     scenario_arrays,
     task_constants,
 )
-from zerith_gym.terrain import Terrain
-from zerith_gym.terrain_levels import LevelRule, TerrainLevels
+from zerith_gym.mjx.physics import MjxPhysics, SolverSettings
+from zerith_gym.options import ZerithOptions, resolve_reward_weights
+from zerith_gym.terrain.ground import Terrain
+from zerith_gym.terrain.levels import LevelRule, TerrainLevels
 
 
 class MjxState(NamedTuple):
@@ -50,7 +50,7 @@ class MjxState(NamedTuple):
 
 
 class MjxBatch:
-    """`num_robots` robots on MJX in one scenario (the robots contract, `zerith_gym.contract.Robots`).
+    """`num_robots` robots on MJX in one scenario (the robots contract, `zerith_gym.core.contract.Robots`).
 
     Reset and step are jitted functions of the state (one compile each, at the first call); numpy arrays
     come in and go out, so `ZerithVecEnv` drives either backend.
@@ -72,7 +72,8 @@ class MjxBatch:
             int(options.episode_steps),
             task,
         )
-        tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots))  # fixed: no curriculum on MJX
+        # Each robot keeps its first tile: no curriculum on MJX.
+        tiles = TerrainLevels(self.terrain.spec, np.arange(num_robots), task.robot.control_dt)
         self._spawn, self._levels = tiles.spawn_points(np.arange(num_robots)), tiles.levels
         self._columns = tiles.columns
         self.set_scenario(self.scenario)
@@ -88,7 +89,7 @@ class MjxBatch:
         for target in scenario.force.targets:
             self.task.robot.force_target_bodies(target)
         command, steps = self.options.fixed_command(scenario), self.constants.episode_steps
-        arrays = scenario_arrays(scenario, command, steps, self.task.noise_scale)
+        arrays = scenario_arrays(scenario, command, steps, self.task)
         if arrays.force_per_body.any():
             raise ValueError(
                 f"scenario {scenario.name!r} draws a force per body (ForceSchedule.per_body): the cpu "
@@ -96,7 +97,7 @@ class MjxBatch:
             )
         self.arrays = ScenarioArrays(*(jnp.asarray(value) for value in arrays))
 
-    # ------------------------------------------------- the robots contract (zerith_gym.contract.Robots)
+    # ------------------------------------------------- the robots contract (zerith_gym.core.contract.Robots)
     def set_level_rule(self, rule: LevelRule | None) -> None:
         """Not on MJX: its robots keep their starting tiles (ValueError unless `rule` is None)."""
         if rule is not None:
@@ -170,7 +171,7 @@ class MjxBatch:
         command = jnp.where(jnp.isfinite(overrides), overrides, start.command)
         fields = domain_model_fields(self.physics.nominal, DomainParams.from_vector(start.domain_vector))
         data = jax.vmap(self.physics.reset)(fields, start.qpos)
-        readings = self.sensors.read(jax.vmap(self.physics.sensordata)(data))
+        readings = read_sensors(self.sensors, jax.vmap(self.physics.sensordata)(data))
         feet = len(task.robot.foot_bodies)
         state = TaskState(
             step_count=jnp.zeros(n, jnp.int32),
@@ -203,7 +204,7 @@ class MjxBatch:
             state.fields, state.data, targets, task.lags, drawn.force, drawn.force_target, drawn.kicks
         )
         sensordata = jnp.where(unstable[:, None], 0.0, jax.vmap(self.physics.sensordata)(data))
-        readings = self.sensors.read(sensordata)
+        readings = read_sensors(self.sensors, sensordata)
         noise = observation_noise(u, sc, self.task.draws)
         task, out = end_step(task, readings, unstable, noise, self.constants)
         stepped = state._replace(data=data, key=key, task=task)

@@ -1,6 +1,6 @@
 """MJX side of the GPU backend: the model on the device, per-robot model fields, reset and control step.
 
-The same MJCF and terrain as the CPU backend (`zerith_gym.physics.build_model`), with two differences
+The same MJCF and terrain as the CPU backend (`zerith_gym.core.physics.build_model`), with two differences
 that MJX imposes, both invisible to the task:
 
 - MJX has no contact sensors with body or subtree matching. The model is put on the device without its
@@ -12,7 +12,7 @@ that MJX imposes, both invisible to the task:
   the episode, as on the CPU.
 
 Every function works on one robot and is `jax.vmap`ped over the batch; the randomized model fields
-(`zerith_gym.physics.RANDOMIZED_FIELDS`) are batched, the rest of the model is shared.
+(`zerith_gym.core.physics.RANDOMIZED_FIELDS`) are batched, the rest of the model is shared.
 """
 
 from __future__ import annotations
@@ -26,11 +26,10 @@ import numpy as np
 from mujoco import mjx
 from mujoco.mjx._src.support import contact_force_dim
 
-from zerith_gym.disturbances import FORCE_TARGET_NAMES
-from zerith_gym.physics import GROUND_CLEARANCE, NominalModel, build_model, lowest_sole_clearance
-from zerith_gym.robot import ZERITH1
-from zerith_gym.robot_spec import RobotSpec
-from zerith_gym.terrain import Terrain
+from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
+from zerith_gym.core.physics import GROUND_CLEARANCE, NominalModel, build_model, lowest_sole_clearance
+from zerith_gym.core.spec import RobotSpec
+from zerith_gym.terrain.ground import Terrain
 
 UNSTABLE_BOUND = 1e10
 """MuJoCo's bad-state bound (mjMAXVAL) on positions, velocities and accelerations."""
@@ -51,9 +50,7 @@ class MjxPhysics:
     is the MJX model without the contact sensors.
     """
 
-    def __init__(
-        self, terrain: Terrain, solver: SolverSettings = SolverSettings(), robot: RobotSpec = ZERITH1
-    ) -> None:
+    def __init__(self, terrain: Terrain, solver: SolverSettings, robot: RobotSpec) -> None:
         self.terrain = terrain
         self.model = build_model(terrain, robot)
         self.nominal = NominalModel.capture(self.model, terrain, robot)
@@ -105,7 +102,7 @@ class MjxPhysics:
     ) -> tuple[mjx.Data, jax.Array]:
         """One control step of one robot: sub-step j applies `targets[lags[j]]` (targets (3, 12) by lag).
 
-        `force` (3,) acts on each body of force target `force_target` (an index of `FORCE_TARGETS`),
+        `force` (3,) acts on each body of force target `force_target` (an index of `FORCE_TARGET_NAMES`),
         `kicks` (2,) is added to the base's horizontal velocity. Returns the data and whether the
         simulation became unstable.
         """

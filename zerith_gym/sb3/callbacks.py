@@ -39,10 +39,10 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
+from zerith_gym.core.infos import ended_falls
+from zerith_gym.core.scenarios import Scenario, resolve_scenario, scaled_scenario
 from zerith_gym.cpu.workers import available_cores
-from zerith_gym.infos import ended_falls
-from zerith_gym.scenarios import Scenario, resolve_scenario, scaled_scenario
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.terrain.levels import LevelRule
 
 
 class RewardTermsLogger(BaseCallback):
@@ -72,7 +72,7 @@ class RewardTermsLogger(BaseCallback):
 
     def _on_step(self) -> bool:
         infos, dones = self.locals["infos"], self.locals["dones"]
-        step = getattr(infos, "step", None)  # a ZerithVecEnv's arrays (zerith_gym.infos.StepInfos)
+        step = getattr(infos, "step", None)  # a ZerithVecEnv's arrays (zerith_gym.core.infos.StepInfos)
         if step is not None:
             self._errors += (step.out.lin_vel_error.sum(), step.out.ang_vel_error.sum())
         else:
@@ -191,7 +191,7 @@ class RandomizationCurriculum(BaseCallback):
 
 
 class TerrainCurriculum(BaseCallback):
-    """Move robots between the levels of a tile terrain as their episodes end (`zerith_gym.terrain_levels`).
+    """Move robots between the levels of a tile terrain as their episodes end (`zerith_gym.terrain.levels`).
 
     At the start of training it hands the env a `LevelRule`: a robot moves up a level when it walked at
     least `promote_distance` m from its spawn point without falling (default: half a tile, to its tile's

@@ -35,15 +35,14 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from zerith_gym.contract import Robots, check_num_robots
+from zerith_gym.core.contract import Robots, check_num_robots
+from zerith_gym.core.infos import step_infos
+from zerith_gym.core.scenarios import Scenario, resolve_scenario
+from zerith_gym.core.spaces import action_space, check_actions, format_observation, observation_space
 from zerith_gym.cpu.batch import ZerithBatch
 from zerith_gym.cpu.workers import WorkerPool, default_workers
-from zerith_gym.infos import step_infos
 from zerith_gym.options import ZerithOptions, reset_command
-from zerith_gym.scenarios import Scenario, resolve_scenario
-from zerith_gym.spaces import action_space, check_actions, format_observation, observation_space
-from zerith_gym.symmetry import ACTION_MIRROR, POLICY_MIRROR
-from zerith_gym.terrain_levels import LevelRule, check_tile
+from zerith_gym.terrain.levels import LevelRule, check_tile
 
 SIMULATION_BACKENDS = ("cpu", "mjx")
 """Where the robots are simulated: "cpu" (MuJoCo, one model per robot, worker processes) or "mjx"
@@ -65,11 +64,8 @@ class ZerithVecEnv(VecEnv):
     `ls_iterations` override the MJCF's constraint solver iterations (100 / 50) there. Its randomness
     comes from one JAX key seeded by `seed`, so its episodes differ from the CPU backend's draws.
     Rendering is not supported (use the single env for videos). `policy_mirror` and `action_mirror` are
-    the single env's (`zerith_gym.symmetry`).
+    the robot's mirror maps (`LocomotionTask.policy_mirror`; None where it has none), as the single env's.
     """
-
-    policy_mirror = POLICY_MIRROR
-    action_mirror = ACTION_MIRROR
 
     def __init__(
         self,
@@ -107,6 +103,8 @@ class ZerithVecEnv(VecEnv):
         self.obs_mode = self.options.obs_mode
         self.render_mode = None
         self.reward_names = self.options.task.reward_names
+        task = self.options.task
+        self.policy_mirror, self.action_mirror = task.policy_mirror, task.action_mirror
         robot_actions = action_space(self.options.task.robot)
         super().__init__(num_envs, observation_space(self.obs_mode, self.options.task), robot_actions)
         self._action_shape = (num_envs, *robot_actions.shape)
@@ -156,7 +154,7 @@ class ZerithVecEnv(VecEnv):
         self._returns += out.reward
         self._lengths += 1
         self._term_sums += out.terms
-        infos = step_infos(step)  # read lazily from the step's arrays (zerith_gym.infos)
+        infos = step_infos(step)  # read lazily from the step's arrays (zerith_gym.core.infos)
         dones = out.terminated | out.truncated
         ended = np.flatnonzero(dones).tolist()
         if ended:
@@ -193,7 +191,7 @@ class ZerithVecEnv(VecEnv):
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
         """Move robots between terrain levels by `rule` when their episodes end (None: stop); ValueError
-        unless the scenario's terrain has tiles (`zerith_gym.terrain_levels`, `TerrainCurriculum`)."""
+        unless the scenario's terrain has tiles (`zerith_gym.terrain.levels`, `TerrainCurriculum`)."""
         self.robots.set_level_rule(rule)
 
     def close(self) -> None:

@@ -39,6 +39,7 @@ from sb3_huri.experiments.grid.layout import (
     run_folder,
     shown_path,
 )
+from sb3_huri.experiments.markdown import mean_cell, table
 from sb3_huri.experiments.statistics import mean_ci
 from sb3_huri.runner.curve import final_return, read_curve
 from sb3_huri.runner.evaluation import (
@@ -110,15 +111,6 @@ def _by_method(results: Sequence[RunResult]) -> dict[str, list[RunResult]]:
 
 def _metric(runs: Sequence[RunResult], case: str, key: str) -> tuple[float, float, int]:
     return mean_ci([run.cases[case][key] for run in runs if case in run.cases and key in run.cases[case]])
-
-
-def _cell(stat: tuple[float, float, int], digits: int = 2) -> str:
-    mean, half, n = stat
-    if n == 0:
-        return "-"
-    if not math.isfinite(half):
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} ± {half:.{digits}f}"
 
 
 def _label(method: str) -> str:
@@ -209,17 +201,15 @@ def _header_section(out: Path, settings: Settings, results: list[RunResult]) -> 
 
 
 def _runs_section(results: list[RunResult]) -> list[str]:
-    lines = ["## Runs", "", "| method | seed | steps | training s | steps/s | evaluation s | state |"]
-    lines += ["|---|---|---|---|---|---|---|"]
+    rows = []
     for r in results:
         s = r.status
         rate = f"{s.steps / s.train_seconds:.0f}" if s.train_seconds > 0 else "-"
         state = s.state + (f" (resumed from {', '.join(map(str, s.resumed_from))})" if s.resumed_from else "")
-        lines.append(
-            f"| {r.method} | {r.seed} | {s.steps} | {s.train_seconds:.0f} | {rate} | {s.eval_seconds:.0f} "
-            f"| {state} |"
-        )
-    return lines
+        times = [f"{s.train_seconds:.0f}", rate, f"{s.eval_seconds:.0f}"]
+        rows.append([r.method, r.seed, s.steps, *times, state])
+    header = ["method", "seed", "steps", "training s", "steps/s", "evaluation s", "state"]
+    return ["## Runs", "", *table(header, rows)]
 
 
 def _table1_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
@@ -231,9 +221,8 @@ def _table1_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _St
         "Share of episodes without a fall; paper's success rate in parentheses. `plane`: walking at "
         f"{PLANE_CASE.split('@')[1]} m/s, no randomization, no force (not in the paper's table).",
         "",
-        "| method | " + " | ".join(TABLE1_SCENARIOS) + " | mean | plane |",
-        "|---|" + "---|" * (len(TABLE1_SCENARIOS) + 2),
     ]
+    rows = []
     table1: _Stats = {}
     for method, runs in grouped.items():
         table1[method] = {case: _metric(runs, case, "survive") for case in TABLE1_SCENARIOS}
@@ -247,12 +236,12 @@ def _table1_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _St
         cells = []
         for case in TABLE1_SCENARIOS:
             ref = f" ({reference[case]:.3f})" if reference else ""
-            cells.append(_cell(table1[method][case]) + ref)
+            cells.append(mean_cell(table1[method][case]) + ref)
         ref_mean = f" ({np.mean(list(reference.values())):.3f})" if reference else ""
-        cells.append(_cell(table1[method]["mean"]) + ref_mean)
-        cells.append(_cell(_metric(runs, PLANE_CASE, "survive")))
-        lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
-    return lines, table1
+        cells.append(mean_cell(table1[method]["mean"]) + ref_mean)
+        cells.append(mean_cell(_metric(runs, PLANE_CASE, "survive")))
+        rows.append([_label(method), *cells])
+    return [*lines, *table(["method", *TABLE1_SCENARIOS, "mean", "plane"], rows)], table1
 
 
 def _returns_section(
@@ -267,14 +256,12 @@ def _returns_section(
         f"Mean episode return over the last tenth of training (SB3's `ep_rew_mean`, our reward scale); "
         f"the paper's average training return (its scale) beside it. Curves: ![returns]({RETURNS_FIGURE})",
         "",
-        "| method | return | paper |",
-        "|---|---|---|",
     ]
+    rows = []
     for method in grouped:
         ref = paper.TRAINING_RETURN.get(method)
-        reference = "-" if ref is None else f"{ref}"
-        lines.append(f"| {_label(method)} | {_cell(returns[method], 1)} | {reference} |")
-    return lines, returns
+        rows.append([_label(method), mean_cell(returns[method], 1), "-" if ref is None else f"{ref}"])
+    return [*lines, *table(["method", "return", "paper"], rows)], returns
 
 
 def _tracking_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
@@ -287,19 +274,18 @@ def _tracking_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _
         "fall, command 1 m/s, a random U[0, 100] N push every 0.5 s (not on uneven ground); survival in "
         "parentheses.",
         "",
-        "| method | " + " | ".join(TRACKING_SCENARIOS) + " |",
-        "|---|" + "---|" * len(TRACKING_SCENARIOS),
     ]
+    rows = []
     tracking: _Stats = {}
     for method, runs in grouped.items():
         tracking[method] = {case: _metric(runs, case, "lin_err") for case in TRACKING_SCENARIOS}
         cells = [
-            f"{_cell(tracking[method][case])} / {_cell(_metric(runs, case, 'yaw_err'))} "
-            f"({_cell(_metric(runs, case, 'survive'))})"
+            f"{mean_cell(tracking[method][case])} / {mean_cell(_metric(runs, case, 'yaw_err'))} "
+            f"({mean_cell(_metric(runs, case, 'survive'))})"
             for case in TRACKING_SCENARIOS
         ]
-        lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
-    return lines, tracking
+        rows.append([_label(method), *cells])
+    return [*lines, *table(["method", *TRACKING_SCENARIOS], rows)], tracking
 
 
 def _terrain_section(grouped: dict[str, list[RunResult]]) -> list[str]:
@@ -313,17 +299,16 @@ def _terrain_section(grouped: dict[str, list[RunResult]]) -> list[str]:
         "0.40 / 0.45 m platform (Table 8: U[0, 100] N on the centroid every 2 s, +-1 kg). The paper trained "
         "on terrains for Table 9; these runs trained on their preset's scenario.",
         "",
-        "| method | " + " | ".join(TERRAIN_SCENARIOS) + " |",
-        "|---|" + "---|" * len(TERRAIN_SCENARIOS),
     ]
+    rows = []
     for method, runs in grouped.items():
         reference = paper.TERRAINS.get(method, {})
-        cells = [
-            _cell(_metric(runs, case, "survive")) + (f" ({reference[case]:.3f})" if case in reference else "")
-            for case in TERRAIN_SCENARIOS
-        ]
-        lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
-    return lines
+        cells = []
+        for case in TERRAIN_SCENARIOS:
+            ref = f" ({reference[case]:.3f})" if case in reference else ""
+            cells.append(mean_cell(_metric(runs, case, "survive")) + ref)
+        rows.append([_label(method), *cells])
+    return [*lines, *table(["method", *TERRAIN_SCENARIOS], rows)]
 
 
 def _risk_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stats]:
@@ -338,20 +323,16 @@ def _risk_section(grouped: dict[str, list[RunResult]]) -> tuple[list[str], _Stat
         "averaged over its episode, under the push over the pushes' steps, or all of its steps if it fell "
         "before the first push; bottom: beta along that episode, the push's force in grey).",
         "",
-        "| method | "
-        + " | ".join(f"IQR {RISK_LABELS[c]}" for c in RISK_CASES)
-        + " | "
-        + " | ".join(f"beta {RISK_LABELS[c]}" for c in RISK_CASES)
-        + " |",
-        "|---|" + "---|" * (2 * len(RISK_CASES)),
     ]
+    rows = []
     iqr: _Stats = {}
     for method, runs in grouped.items():
         iqr[method] = {RISK_LABELS[c]: _metric(runs, c, "iqr") for c in RISK_CASES}
-        cells = [_cell(iqr[method][RISK_LABELS[c]], 3) for c in RISK_CASES]
-        cells += [_cell(_metric(runs, c, "beta"), 3) for c in RISK_CASES]
-        lines.append(f"| {_label(method)} | " + " | ".join(cells) + " |")
-    return lines, iqr
+        cells = [mean_cell(iqr[method][RISK_LABELS[c]], 3) for c in RISK_CASES]
+        cells += [mean_cell(_metric(runs, c, "beta"), 3) for c in RISK_CASES]
+        rows.append([_label(method), *cells])
+    header = ["method", *(f"IQR {RISK_LABELS[c]}" for c in RISK_CASES)]
+    return [*lines, *table([*header, *(f"beta {RISK_LABELS[c]}" for c in RISK_CASES)], rows)], iqr
 
 
 def _orderings_section(
@@ -429,7 +410,7 @@ def _plot_risk(path: Path, grouped: dict[str, list[RunResult]]) -> None:
     """Value-distribution CDFs (top) and beta traces (bottom) on the plane, under a push, uneven (Fig. 5)."""
     from matplotlib.figure import Figure
 
-    from zerith_gym.robot import CONTROL_DT
+    from zerith_gym.zerith1.constants import CONTROL_DT
 
     figure = Figure(figsize=(12, 6.5), layout="constrained")
     panels = figure.subplots(2, len(RISK_CASES), squeeze=False)

@@ -35,6 +35,7 @@ from sb3_huri.experiments.grid.layout import (
     shown_path,
 )
 from sb3_huri.experiments.grid.standard import RETURN_CASE
+from sb3_huri.experiments.markdown import interval_cell, mean_cell, table
 from sb3_huri.experiments.statistics import improvement_interval, iqm_interval, mean_ci
 from sb3_huri.runner.files import read_json, write_text
 from sb3_huri.runner.record import record_path
@@ -157,28 +158,16 @@ def _header(out: Path, tasks: list[Task]) -> list[str]:
     return lines
 
 
-def _interval(stat: tuple[float, float, float], digits: int = 1) -> str:
-    value, low, high = stat
-    return f"{value:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
-
-
 def _task_section(task: Task) -> list[str]:
     """The task's table: per method, the mean with its t interval, the IQM, P(> PPO), each seed's value."""
-    lines = [
-        "",
-        f"## {task.settings.env}",
-        "",
-        "| method | seeds | mean ± 95% CI (t) | IQM [95% CI] | P(> PPO) [95% CI] | per seed |",
-        "|---|---|---|---|---|---|",
-    ]
     baseline = task.returns(BASELINE)
+    rows = []
     for method in task.methods:
         values = task.returns(method)
-        mean, half, n = mean_ci(values)
-        mean_cell = "-" if n == 0 else f"{mean:.1f}" + (f" ± {half:.1f}" if math.isfinite(half) else "")
-        iqm_cell = _interval(iqm_interval(values, resamples=RESAMPLES)) if values else "-"
+        stat = mean_ci(values)
+        iqm = interval_cell(*iqm_interval(values, resamples=RESAMPLES), ".1f") if values else "-"
         beats = (
-            _interval(improvement_interval([(values, baseline)], resamples=RESAMPLES), 2)
+            interval_cell(*improvement_interval([(values, baseline)], resamples=RESAMPLES))
             if values and baseline and method != BASELINE
             else "-"
         )
@@ -186,8 +175,9 @@ def _task_section(task: Task) -> list[str]:
         per_seed = ", ".join(
             f"{r.seed}: {r.final_return:.1f}" for r in seeds if math.isfinite(r.final_return)
         )
-        lines.append(f"| `{method}` | {n} | {mean_cell} | {iqm_cell} | {beats} | {per_seed or '-'} |")
-    return lines
+        rows.append([f"`{method}`", stat[2], mean_cell(stat, 1), iqm, beats, per_seed or "-"])
+    header = ["method", "seeds", "mean ± 95% CI (t)", "IQM [95% CI]", "P(> PPO) [95% CI]", "per seed"]
+    return ["", f"## {task.settings.env}", "", *table(header, rows)]
 
 
 def _across_section(tasks: list[Task]) -> list[str]:
@@ -199,16 +189,14 @@ def _across_section(tasks: list[Task]) -> list[str]:
         "P(> PPO) averaged over the tasks where both the method and PPO have evaluated seeds (rliable's "
         "aggregate probability of improvement), 95% stratified bootstrap interval.",
         "",
-        "| method | tasks | P(> PPO) [95% CI] |",
-        "|---|---|---|",
     ]
-    methods = list(dict.fromkeys(m for task in tasks for m in task.methods if m != BASELINE))
-    for method in methods:
+    rows = []
+    for method in dict.fromkeys(m for task in tasks for m in task.methods if m != BASELINE):
         pairs = [(t.returns(method), t.returns(BASELINE)) for t in tasks]
         pairs = [(x, y) for x, y in pairs if x and y]
-        cell = _interval(improvement_interval(pairs, resamples=RESAMPLES), 2) if pairs else "-"
-        lines.append(f"| `{method}` | {len(pairs)} | {cell} |")
-    return lines
+        cell = interval_cell(*improvement_interval(pairs, resamples=RESAMPLES)) if pairs else "-"
+        rows.append([f"`{method}`", len(pairs), cell])
+    return [*lines, *table(["method", "tasks", "P(> PPO) [95% CI]"], rows)]
 
 
 def _hardware(state: RunState) -> str:
@@ -218,14 +206,7 @@ def _hardware(state: RunState) -> str:
 
 def _runs_section(task: Task) -> list[str]:
     """Each run of the task: steps, times, training sessions and the machines they ran on."""
-    lines = [
-        "",
-        f"## Runs: {task.settings.env}",
-        "",
-        "| method | seed | steps | training s | steps/s | evaluation s | sessions | hardware | final return "
-        "| state |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for run in task.runs:
         status = run.status
         wall = run.state.wall_s or status.train_seconds
@@ -236,5 +217,6 @@ def _runs_section(task: Task) -> list[str]:
         )
         cells = [f"`{run.method}`", run.seed, run.state.timesteps, f"{wall:.0f}", rate]
         cells += [f"{status.eval_seconds:.1f}", len(run.state.sessions), _hardware(run.state), final, state]
-        lines.append("| " + " | ".join(map(str, cells)) + " |")
-    return lines
+        rows.append(cells)
+    header = ["method", "seed", "steps", "training s", "steps/s", "evaluation s", "sessions", "hardware"]
+    return ["", f"## Runs: {task.settings.env}", "", *table([*header, "final return", "state"], rows)]

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zerith_gym.arrays import namespace
+from zerith_gym.core.arrays import namespace
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """Which tile each robot starts on, and the terrain curriculum that moves robots between levels.
 
-A tile terrain (`zerith_gym.tiles`) has one column per terrain kind and one row per difficulty level. Robot
-`i` of an env (counted over the whole env, whichever process steps it) keeps column `i % columns` and starts
-at level `(i // columns) % start_levels`. With a `LevelRule` (the `TerrainCurriculum` callback sets one),
-each robot whose episode ended is moved before its next start, as legged-robot curricula do:
+A tile terrain (`zerith_gym.terrain.tiles`) has one column per terrain kind and one row per difficulty level.
+Robot `i` of an env (counted over the whole env, whichever process steps it) keeps column `i % columns` and
+starts at level `(i // columns) % start_levels`. With a `LevelRule` (the `TerrainCurriculum` callback sets
+one), each robot whose episode ended is moved before its next start, as legged-robot curricula do:
 
 - up a level if it walked at least `promote_distance` from its spawn point without falling;
 - down a level if it fell, or walked less than `demote_fraction` of the distance its commands asked for.
@@ -18,8 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.terrain import TerrainSpec
+from zerith_gym.terrain.ground import TerrainSpec
 
 
 @dataclass(frozen=True)
@@ -72,15 +71,16 @@ def check_tile(spec: TerrainSpec, tile: object) -> tuple[int, int]:
 
 
 class TerrainLevels:
-    """The tiles of a batch of robots (global indices `robots`) and what the curriculum needs to move them.
+    """The tiles of a batch of robots (global indices `robots`, stepped every `control_dt` s) and what the
+    curriculum needs to move them.
 
     Per control step `record` keeps each robot's position, the distance its commands asked for and
     whether its episode ended in a fall; `spawn_points` moves the robots whose episode ended (with a
     rule) and gives where their next episode starts.
     """
 
-    def __init__(self, spec: TerrainSpec, robots: np.ndarray) -> None:
-        self.spec = spec
+    def __init__(self, spec: TerrainSpec, robots: np.ndarray, control_dt: float) -> None:
+        self.spec, self.control_dt = spec, control_dt
         columns = spec.num_columns
         start_levels = spec.tiles.start_levels if spec.tiles is not None else 1
         self.columns = robots % columns
@@ -148,6 +148,6 @@ class TerrainLevels:
         simulation (n,) each; a diverged robot's position is not read (its sensors were zeroed)."""
         self.position[~unstable] = base_xy[~unstable]
         self.unstable |= unstable
-        self.commanded += np.hypot(command[:, 0], command[:, 1]) * robot.CONTROL_DT
+        self.commanded += np.hypot(command[:, 0], command[:, 1]) * self.control_dt
         self.fell |= fell
         self.ended |= ended

@@ -1,9 +1,9 @@
-"""Go2-like quadruped constants: joint order, default pose, actuation, bodies and timing.
+"""Go2-like quadruped constants: joint order, default pose, actuation, bodies, sensors and timing.
 
-The quadruped counterpart of `zerith_gym.robot`, for the model in `assets/go2like.xml` (a Unitree-Go2-like
-robot built from the Go2's published figures, with legged_gym's Go2 settings). Every constant here must
-match that MJCF: joint names and order, ranges, PD gains and torque limits, masses, body and geom names,
-the time step and the `home` keyframe (checked by tests/test_quadruped_model.py).
+The quadruped counterpart of `zerith_gym.zerith1.constants`, for the model in `go2like.xml` (a
+Unitree-Go2-like robot built from the Go2's published figures, with legged_gym's Go2 settings). Every constant
+here must match that MJCF: joint names and order, ranges, PD gains and torque limits, masses, body and geom
+names, the time step and the `home` keyframe (checked by tests/test_quadruped_model.py).
 """
 
 from __future__ import annotations
@@ -13,10 +13,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym.robot import sensor_blocks
-from zerith_gym.robot_spec import RobotSpec
+from zerith_gym.core.spec import RobotSpec
 
-ASSET_PATH = Path(__file__).resolve().parent / "assets" / "go2like.xml"
+ASSET_PATH = Path(__file__).resolve().parent / "go2like.xml"
 
 LEGS = ("FL", "FR", "RL", "RR")
 """Front left, front right, rear left, rear right: legged_gym's Go2 order."""
@@ -106,8 +105,9 @@ SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
 class Sensors(NamedTuple):
     """The quadruped's readings, one field per quantity of `SENSOR_GROUPS`; in the world frame unless noted.
 
-    As a layout, each field is a slice of `data.sensordata`; as readings of n robots (`layout.read`), each
-    is an (n, width) view of their sensor rows. Feet are in `LEGS` order.
+    As a layout (`RobotSpec.sensor_layout`), each field is a slice of `data.sensordata`; as readings of n
+    robots (`zerith_gym.core.spec.read_sensors`), each is an (n, width) view of their sensor rows. Feet are
+    in `LEGS` order.
     """
 
     base_pos: np.ndarray  # (3) trunk position
@@ -123,15 +123,6 @@ class Sensors(NamedTuple):
     foot_force: np.ndarray  # (12) ground reaction on each foot, xyz
     base_contact: np.ndarray  # (1) contacts between the trunk and the ground (> 0: touching)
     leg_contact: np.ndarray  # (8) contacts of each thigh and calf with the ground, FL thigh, FL calf, ...
-
-    @staticmethod
-    def layout(model) -> Sensors:
-        """Slices of `data.sensordata` of every quantity; ValueError if a quantity's sensors are split."""
-        return Sensors(**sensor_blocks(model, SENSOR_GROUPS))
-
-    def read(self, sensordata: np.ndarray) -> Sensors:
-        """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""
-        return Sensors(*(sensordata[:, block] for block in self))
 
 
 GO2LIKE = RobotSpec(
@@ -152,7 +143,8 @@ GO2LIKE = RobotSpec(
     standing_height=STANDING_HEIGHT,
     physics_dt=PHYSICS_DT,
     control_dt=CONTROL_DT,
-    sensor_layout=Sensors.layout,
+    sensors=Sensors,
+    sensor_groups=SENSOR_GROUPS,
     action_clip=ACTION_CLIP,
 )
-"""The Go2-like quadruped as the shared machinery reads it (`zerith_gym.robot_spec.RobotSpec`)."""
+"""The Go2-like quadruped as the shared machinery reads it (`zerith_gym.core.spec.RobotSpec`)."""

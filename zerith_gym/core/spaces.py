@@ -8,13 +8,11 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from zerith_gym.humanoid_task import HUMANOID_TASK
-from zerith_gym.robot import ZERITH1
-from zerith_gym.robot_spec import RobotSpec
-from zerith_gym.task import LocomotionTask
+from zerith_gym.core.spec import RobotSpec
+from zerith_gym.core.task import LocomotionTask
 
 
-def observation_space(obs_mode: str, task: LocomotionTask = HUMANOID_TASK) -> spaces.Space:
+def observation_space(obs_mode: str, task: LocomotionTask) -> spaces.Space:
     """The observation space of one robot of `task` for `obs_mode`."""
     policy = spaces.Box(-np.inf, np.inf, shape=(task.policy_size,), dtype=np.float32)
     if obs_mode == "policy":
@@ -30,7 +28,7 @@ def format_observation(obs_mode: str, policy: np.ndarray, critic: np.ndarray) ->
     return {"policy": policy, "critic": critic}
 
 
-def action_space(robot: RobotSpec = ZERITH1) -> spaces.Box:
+def action_space(robot: RobotSpec) -> spaces.Box:
     """One robot's actions: a joint-position offset per joint, in units of its action scale, within
     +-`robot.action_clip` (Zerith-1: 1; the quadruped: legged_gym's 100)."""
     bound = robot.action_clip

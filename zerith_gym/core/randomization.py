@@ -11,12 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.arrays import namespace
+from zerith_gym.core.arrays import namespace
 
 Range = tuple[float, float]
 NUM_LINKS = 16
 """Bodies whose mass is scaled: every robot body except the root (which gets `added_mass` instead)."""
+NUM_JOINTS = 12
+"""Joints whose motor strength and gains are drawn: every actuated joint. Both robots have 16 links and 12
+joints, so that one domain vector serves them (`NominalModel.capture` checks a model against both)."""
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,7 @@ WIDEST = RandomizationRanges(
     action_delay=TRAIN.action_delay,
 )
 """Every domain parameter's widest range in the paper (training or test): the critic sees each scaled from
-this range to [-1, 1] (`zerith_gym.observations.CRITIC_SCALE`)."""
+this range to [-1, 1] (`zerith_gym.zerith1.observations.CRITIC_SCALE`)."""
 
 
 @dataclass
@@ -107,9 +109,9 @@ DOMAIN_SIZES = {
     "added_mass": 1,
     "com_offset": 3,
     "link_mass_scale": NUM_LINKS,
-    "motor_strength": robot.NUM_JOINTS,
-    "kp_scale": robot.NUM_JOINTS,
-    "kd_scale": robot.NUM_JOINTS,
+    "motor_strength": NUM_JOINTS,
+    "kp_scale": NUM_JOINTS,
+    "kd_scale": NUM_JOINTS,
     "action_delay": 1,
 }
 DOMAIN_VECTOR_SIZE = sum(DOMAIN_SIZES.values())

@@ -16,19 +16,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.arrays import namespace
+from zerith_gym.core.arrays import namespace
 
 FORCE_TARGET_NAMES = ("centroid", "hands", "feet")
 """Where a force can act: the root body, each hand, each foot (`RobotSpec.force_bodies` names the bodies)."""
-FORCE_TARGETS = {
-    "centroid": (robot.ROOT_BODY,),
-    "hands": robot.HAND_BODIES,
-    "feet": robot.FOOT_BODIES,
-}
-"""Zerith-1's bodies of each force target."""
 TARGET_INDEX = {name: index for index, name in enumerate(FORCE_TARGET_NAMES)}
-"""Index of each target in `FORCE_TARGETS`, as the per-step force target tables hold it."""
+"""Index of each target in `FORCE_TARGET_NAMES`, as the per-step force target tables hold it."""
 FORCE_DRAWS = 2
 """Uniform numbers in [0, 1) consumed by one force draw: magnitude and direction."""
 PUSH_DRAWS = 2
@@ -52,9 +45,9 @@ class ForceSchedule:
     range. The same for the centroid, a group of one body."""
 
     def __post_init__(self) -> None:
-        if self.target not in FORCE_TARGETS:
+        if self.target not in FORCE_TARGET_NAMES:
             raise ValueError(
-                f"ForceSchedule target must be one of {sorted(FORCE_TARGETS)}, got {self.target!r}"
+                f"ForceSchedule target must be one of {sorted(FORCE_TARGET_NAMES)}, got {self.target!r}"
             )
         if not 0 < self.duration_steps <= self.period_steps:
             raise ValueError("ForceSchedule needs 0 < duration_steps <= period_steps")

@@ -1,9 +1,9 @@
 """Zerith-1's task (`HUMANOID_TASK`): the paper's observations, Table-4 rewards and falls, and gait clock.
 
-The humanoid's side of the step every robot shares (`zerith_gym.task`): the ground under the pelvis and the
-soles (`ground`), the policy and critic observations (`observations`), what the reward terms read
-(`reward_inputs`, the terms themselves in `zerith_gym.rewards`), the falls, and `judge_step`, which joins
-them after each control step. Like the kernel, it is written against the functions numpy and jax.numpy
+The humanoid's side of the step every robot shares (`zerith_gym.core.task`): the ground under the pelvis
+and the soles (`ground`), the policy and critic observations (`observations`), what the reward terms read
+(`reward_inputs`, the terms themselves in `zerith_gym.zerith1.rewards`), the falls, and `judge_step`, which
+joins them after each control step. Like the kernel, it is written against the functions numpy and jax.numpy
 share: the CPU backend calls it through `HUMANOID_TASK`, the MJX backend under `jax.jit`.
 """
 
@@ -13,9 +13,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym import gait, robot
-from zerith_gym.arrays import namespace
-from zerith_gym.observations import (
+from zerith_gym.core.arrays import namespace
+from zerith_gym.core.task import CONTACT_THRESHOLD, Judgement, LocomotionTask, TaskConstants, TaskState
+from zerith_gym.terrain.ground import Terrain
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1 import gait
+from zerith_gym.zerith1.observations import (
     CRITIC_LAYOUT,
     CRITIC_OFFSET,
     CRITIC_SCALE,
@@ -25,9 +28,8 @@ from zerith_gym.observations import (
     POLICY_SIZE,
     policy_noise_scale,
 )
-from zerith_gym.rewards import DEFAULT_REWARD_WEIGHTS, RewardInputs, reward_terms_for
-from zerith_gym.task import CONTACT_THRESHOLD, Judgement, LocomotionTask, TaskConstants, TaskState
-from zerith_gym.terrain import Terrain
+from zerith_gym.zerith1.rewards import DEFAULT_REWARD_WEIGHTS, RewardInputs, reward_terms_for
+from zerith_gym.zerith1.symmetry import ACTION_MIRROR, POLICY_MIRROR
 
 FALL_HEIGHT = 0.45
 """A fall: the pelvis is lower than this (m) above the ground under it ..."""
@@ -129,7 +131,7 @@ def reward_inputs(
     last_joint_vel: np.ndarray,
     soft_limits: tuple[np.ndarray, np.ndarray],
 ) -> RewardInputs:
-    """What the reward terms of n robots read (zerith_gym.rewards); `actions` (n, 3, 12) newest first."""
+    """What the reward terms of n robots read (`zerith1.rewards`); `actions` (n, 3, 12) newest first."""
     xp = namespace(r.foot_pos)
     foot_pos = r.foot_pos
     # Feet relative to the base, in the base's yaw frame, against the Raibert targets.
@@ -268,8 +270,16 @@ HUMANOID_TASK = LocomotionTask(
         "gait_foot_phase_offsets": gait.FOOT_PHASE_OFFSETS.tolist(),
     },
     gait_steps=len(GAIT_TABLE),
+    policy_mirror=POLICY_MIRROR,
+    action_mirror=ACTION_MIRROR,
 )
 """Zerith-1 walking with the paper's gait clock, observations and Table-4 rewards."""
+HUMANOID_DRAWS = HUMANOID_TASK.draws
+"""Zerith-1's draws."""
+STEP_DRAWS = HUMANOID_DRAWS.step
+"""Uniform numbers each Zerith-1 robot draws per control step, used or not, to keep streams aligned."""
+RESET_DRAWS = HUMANOID_DRAWS.reset
+"""Uniform numbers each Zerith-1 robot draws per reset, in the order of `Draws.reset_parts`."""
 
 
 _FOOT_XY = np.array([0, 1, 3, 4])  # of a (left xyz, right xyz) row

@@ -1,5 +1,5 @@
-"""Terrains: the default plane, an uneven height field and tile grids (`zerith_gym.tiles`), with height
-look-ups for rewards and the critic and the robots' spawn points."""
+"""Terrains: the default plane, an uneven height field and tile grids (`zerith_gym.terrain.tiles`), with
+height look-ups for rewards and the critic and the robots' spawn points."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from zerith_gym.arrays import namespace
-from zerith_gym.tiles import STAIRS_KINDS, TileGrid, tile_heights
+from zerith_gym.core.arrays import namespace
+from zerith_gym.terrain.tiles import STAIRS_KINDS, TileGrid, tile_heights
 
 TERRAIN_KINDS = ("plane", "uneven", "tiles")
 HFIELD_SOLREF = (0.01, 1.0)
@@ -29,7 +29,7 @@ class TerrainSpec:
     "uneven" is a square height field of uniform random cell heights in [0, max_height] (0.1 m cells, a
     flat border), laid on the ground plane; the robot starts near its -x edge so that 20 s of walking
     forward at 1 m/s stays on it. "tiles" is the grid of terrain kinds and levels that `tiles` describes
-    (`zerith_gym.tiles.TileGrid`, `resolution` m cells); each robot starts at the centre of its tile.
+    (`zerith_gym.terrain.tiles.TileGrid`, `resolution` m cells); each robot starts at the centre of its tile.
     """
 
     kind: str = "plane"

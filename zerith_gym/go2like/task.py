@@ -1,7 +1,7 @@
 """The Go2-like quadruped's task: legged_gym's observations, rewards and episode end (Rudin et al., 2022).
 
 The HuRi paper trains its quadruped (appendix A.6) with legged_gym's Go2 settings; this module is that
-task as a `LocomotionTask` on the step every robot shares (`zerith_gym.task`). Like the kernel, it is
+task as a `LocomotionTask` on the step every robot shares (`zerith_gym.core.task`). Like the kernel, it is
 written against the functions numpy and jax.numpy share.
 
 Observations, in physical units (a running normalizer scales them, as for Zerith-1):
@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from zerith_gym import quadruped_robot as quad
-from zerith_gym.arrays import namespace
-from zerith_gym.observations import HEIGHT_SCALE, MAX_EXTERNAL_FORCE, layout_slices
-from zerith_gym.randomization import DOMAIN_SIZES, DOMAIN_VECTOR_SIZE, WIDEST, domain_bounds
-from zerith_gym.task import CONTACT_THRESHOLD, Judgement, LocomotionTask, TaskConstants, TaskState
-from zerith_gym.terrain import Terrain
+from zerith_gym.core.arrays import namespace
+from zerith_gym.core.observations import HEIGHT_SCALE, MAX_EXTERNAL_FORCE, layout_slices
+from zerith_gym.core.randomization import DOMAIN_SIZES, DOMAIN_VECTOR_SIZE, WIDEST, domain_bounds
+from zerith_gym.core.task import CONTACT_THRESHOLD, Judgement, LocomotionTask, TaskConstants, TaskState
+from zerith_gym.go2like import constants as quad
+from zerith_gym.terrain.ground import Terrain
 
 TRACKING_SIGMA = 0.25
 """Width of the velocity-tracking kernels exp(-error^2 / sigma)."""
@@ -95,8 +95,8 @@ def _noise_scale() -> np.ndarray:
 
 
 def _critic_affine() -> tuple[np.ndarray, np.ndarray]:
-    """Known scales of the critic's entries, as Zerith-1's (`zerith_gym.observations`): (value - offset) *
-    scale brings each to about [-1, 1]."""
+    """Known scales of the critic's entries, as Zerith-1's (`zerith_gym.zerith1.observations`):
+    (value - offset) * scale brings each to about [-1, 1]."""
     offset, scale = np.zeros(CRITIC_SIZE), np.ones(CRITIC_SIZE)
     critic = layout_slices(CRITIC_LAYOUT)
     scale[critic["base_angular_velocity"]] = 0.25

@@ -1,10 +1,10 @@
 """The step every robot shares: resets, disturbances, the two halves of a control step, for a batch of robots.
 
 The kernel's math is a set of pure functions over arrays with a leading robot axis, written against the
-functions numpy and jax.numpy share (`zerith_gym.arrays`): `reset_values`, `step_disturbances`,
+functions numpy and jax.numpy share (`zerith_gym.core.arrays`): `reset_values`, `step_disturbances`,
 `action_targets`, `step_output`, and the two halves of a control step over one `TaskState` record,
 `begin_step` and `end_step`. What a robot observes and is rewarded for is its `LocomotionTask`, called by
-`end_step`: Zerith-1's in `zerith_gym.humanoid_task`, the quadruped's in `zerith_gym.legged_gym_task`.
+`end_step`: Zerith-1's in `zerith_gym.zerith1.task`, the quadruped's in `zerith_gym.go2like.task`.
 Both backends call them: the CPU backend with numpy (`ZerithTask` below), the MJX backend with jax.numpy
 under `jax.jit` (`zerith_gym.mjx`). What a scenario sets is handed to them as arrays (`ScenarioArrays`), so
 a curriculum changes it without rebuilding anything.
@@ -30,12 +30,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.arrays import namespace
-from zerith_gym.commands import COMMAND_DRAWS, command_bounds, commands_from_uniforms
-from zerith_gym.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due
-from zerith_gym.observations import POLICY_SIZE, layout_slices, policy_noise_scale
-from zerith_gym.randomization import (
+from zerith_gym.core.arrays import namespace
+from zerith_gym.core.commands import COMMAND_DRAWS, command_bounds, commands_from_uniforms
+from zerith_gym.core.disturbances import FORCE_DRAWS, PUSH_DRAWS, horizontal_vectors, push_due
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.core.randomization import (
     DOMAIN_DRAWS,
     DOMAIN_VECTOR_SIZE,
     DomainParams,
@@ -43,10 +42,10 @@ from zerith_gym.randomization import (
     domain_bounds,
     uniform_in,
 )
-from zerith_gym.robot_spec import RobotSpec
-from zerith_gym.scenarios import Scenario
-from zerith_gym.terrain import Terrain
-from zerith_gym.terrain_levels import LevelRule, TerrainLevels
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.spec import RobotSpec, read_sensors
+from zerith_gym.terrain.ground import Terrain
+from zerith_gym.terrain.levels import LevelRule, TerrainLevels
 
 EPISODE_STEPS = 1000
 """Default control steps in an episode (20 s): reaching them is a truncation."""
@@ -95,14 +94,6 @@ def draw_layout(policy_size: int, num_joints: int) -> Draws:
     return Draws(noise, force, command, push, push.stop, reset, reset["step"].stop)
 
 
-HUMANOID_DRAWS = draw_layout(POLICY_SIZE, robot.NUM_JOINTS)
-"""Zerith-1's draws."""
-STEP_DRAWS = HUMANOID_DRAWS.step
-"""Uniform numbers each Zerith-1 robot draws per control step, used or not, to keep streams aligned."""
-RESET_DRAWS = HUMANOID_DRAWS.reset
-"""Uniform numbers each Zerith-1 robot draws per reset, in the order of `Draws.reset_parts`."""
-
-
 class ScenarioArrays(NamedTuple):
     """What a scenario sets for the task, as arrays (`scenario_arrays`).
 
@@ -126,7 +117,7 @@ class ScenarioArrays(NamedTuple):
     standing_probability: np.ndarray  # ()
     fixed_command: np.ndarray  # (3,) the command of every episode where `has_fixed_command`
     has_fixed_command: np.ndarray  # () bool
-    noise_scale: np.ndarray  # (POLICY_SIZE,) half width of the policy observation noise
+    noise_scale: np.ndarray  # (policy size,) half width of the policy observation noise
     init_roll_pitch: np.ndarray  # () half width (rad) of the reset roll and pitch
     init_joint_scale: np.ndarray  # (2,) range of the factor on the default joint positions at reset
 
@@ -135,16 +126,16 @@ def scenario_arrays(
     scenario: Scenario,
     command: tuple[float, float, float] | None,
     episode_steps: int,
-    noise_scale: np.ndarray | None = None,
+    task: LocomotionTask,
 ) -> ScenarioArrays:
-    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps`, with
-    `noise_scale` the training noise of each policy observation entry (None: Zerith-1's).
+    """The arrays of `scenario` (and of a fixed `command`, if any) for episodes of `episode_steps` of the
+    robot of `task` (its control period, and its policy observation's training noise).
 
     The force table covers twice the episode, so that an episode may start anywhere in its first half
     (`ForceCycle.start_phases`); ValueError if the force program starts episodes later than that.
     """
-    ranges = scenario.randomization
-    command_interval = round(scenario.command_ranges.resample_interval_s / robot.CONTROL_DT)
+    ranges, control_dt = scenario.randomization, task.robot.control_dt
+    command_interval = round(scenario.command_ranges.resample_interval_s / control_dt)
     steps = np.arange(episode_steps)
     offsets = scenario.force.start_offsets
     if max(offsets) >= episode_steps:
@@ -156,7 +147,7 @@ def scenario_arrays(
     due = np.column_stack(
         [
             (steps > 0) & (steps % command_interval == 0) & (command is None),
-            push_due(episode_steps, round(ranges.push_interval_s / robot.CONTROL_DT), ranges.push_velocity),
+            push_due(episode_steps, round(ranges.push_interval_s / control_dt), ranges.push_velocity),
         ]
     )
     low, high = command_bounds(scenario.command_ranges)
@@ -177,7 +168,7 @@ def scenario_arrays(
         standing_probability=np.array(scenario.command_ranges.standing_probability),
         fixed_command=np.zeros(3) if command is None else np.asarray(command, dtype=float),
         has_fixed_command=np.array(command is not None),
-        noise_scale=(policy_noise_scale() if noise_scale is None else noise_scale) * ranges.observation_noise,
+        noise_scale=task.noise_scale * ranges.observation_noise,
         init_roll_pitch=np.array(ranges.init_roll_pitch, dtype=float),
         init_joint_scale=np.array(ranges.init_joint_scale, dtype=float),
     )
@@ -188,9 +179,9 @@ class ResetValues(NamedTuple):
 
     qpos: np.ndarray  # (n, 7 + 12) base position (height 0: the caller puts the feet on the ground), joints
     domain_vector: np.ndarray  # (n, DOMAIN_VECTOR_SIZE), the critic's layout (`DomainParams.from_vector`)
-    lags: np.ndarray  # (n, DECIMATION) control steps of delay of each physics sub-step's action
+    lags: np.ndarray  # (n, decimation) control steps of delay of each physics sub-step's action
     command: np.ndarray  # (n, 3)
-    noise_uniforms: np.ndarray  # (n, STEP_DRAWS) the uniforms of the first observation's noise
+    noise_uniforms: np.ndarray  # (n, draws.step) the uniforms of the first observation's noise
     force_offset: np.ndarray  # (n,) int, the step of the force table the episode starts at
 
 
@@ -199,8 +190,8 @@ def reset_values(
     sc: ScenarioArrays,
     spawn_xy: np.ndarray,
     spawn_jitter: float,
-    robot: RobotSpec = robot.ZERITH1,
-    draws: Draws = HUMANOID_DRAWS,
+    robot: RobotSpec,
+    draws: Draws,
 ) -> ResetValues:
     """The start of new episodes of `robot` from uniforms (n, draws.reset) in [0, 1), in the order of
     `draws.reset_parts`, at spawn points `spawn_xy` (n, 2) moved by up to `spawn_jitter` m along x and y."""
@@ -235,7 +226,7 @@ def reset_values(
     )
 
 
-def action_targets(actions: np.ndarray, robot: RobotSpec = robot.ZERITH1) -> np.ndarray:
+def action_targets(actions: np.ndarray, robot: RobotSpec) -> np.ndarray:
     """Joint targets (n, lags, 12) of an action history (n, lags, 12) within +-`robot.action_clip`, newest
     first."""
     return robot.default_joint_pos + robot.action_scale * actions
@@ -258,7 +249,7 @@ def step_disturbances(
     force: np.ndarray,
     command: np.ndarray,
     sc: ScenarioArrays,
-    draws: Draws = HUMANOID_DRAWS,
+    draws: Draws,
 ) -> Disturbances:
     """Redraw forces, commands and pushes where the scenario's tables say at each robot's episode step
     `step_count` (n,) (the force table at `step_count + force_offset`), from uniforms (n, draws.step)."""
@@ -279,7 +270,7 @@ def step_disturbances(
     )
 
 
-def observation_noise(uniforms: np.ndarray, sc: ScenarioArrays, draws: Draws = HUMANOID_DRAWS) -> np.ndarray:
+def observation_noise(uniforms: np.ndarray, sc: ScenarioArrays, draws: Draws) -> np.ndarray:
     """The policy observation noise (n, policy size) from a step's uniforms (n, draws.step)."""
     return (2.0 * uniforms[:, draws.noise] - 1.0) * sc.noise_scale
 
@@ -432,7 +423,7 @@ def begin_step(
 
 def end_step(
     state: TaskState,
-    readings: robot.Sensors,
+    readings: NamedTuple,
     unstable: np.ndarray,
     noise: np.ndarray | None,
     constants: TaskConstants,
@@ -499,6 +490,10 @@ class LocomotionTask:
     """Share of each joint's range (centred) beyond which the joint-limit penalty applies."""
     default_scenario: str = "train"
     """The scenario an env of this robot follows unless told otherwise."""
+    policy_mirror: Any = None
+    action_mirror: Any = None
+    """Left-right mirror maps of the actor's observation and of an action (signed permutations, Zerith-1's
+    `zerith_gym.zerith1.symmetry`), for a symmetry loss (`HuRiPPO(mirror_coef=...)`); None: none."""
 
     def critic_in_units(self, critic: np.ndarray) -> np.ndarray:
         """Critic observations (..., critic_size) back in physical units."""
@@ -530,14 +525,15 @@ class ZerithTask:
         self,
         num_robots: int,
         scenario: Scenario,
-        sensors: robot.Sensors,
+        sensors: NamedTuple,
         constants: TaskConstants,
         command: tuple[float, float, float] | None = None,
         first_robot: int = 0,
     ) -> None:
         n = self.num_robots = num_robots
         self.constants = constants
-        self.tiles = TerrainLevels(constants.terrain.spec, np.arange(first_robot, first_robot + n))
+        robots = np.arange(first_robot, first_robot + n)
+        self.tiles = TerrainLevels(constants.terrain.spec, robots, constants.task.robot.control_dt)
         """Each robot's tile of the terrain, and the terrain curriculum's rule (`set_level_rule`)."""
         self.episode_steps = constants.episode_steps
         self.sensors = sensors
@@ -564,7 +560,7 @@ class ZerithTask:
         between rollouts.
         """
         self.scenario = scenario
-        self.arrays = scenario_arrays(scenario, command, self.episode_steps, self.task.noise_scale)
+        self.arrays = scenario_arrays(scenario, command, self.episode_steps, self.task)
         self._noisy = bool(self.arrays.noise_scale.any())
         self._per_body = bool(self.arrays.force_per_body.any())
 
@@ -607,7 +603,7 @@ class ZerithTask:
 
     def set_level_rule(self, rule: LevelRule | None) -> None:
         """Move robots between terrain levels by `rule` when their episodes end (None: stop); ValueError
-        unless the terrain has tiles (`zerith_gym.terrain_levels`)."""
+        unless the terrain has tiles (`zerith_gym.terrain.levels`)."""
         self.tiles.set_rule(rule)
 
     def set_command(self, ids: np.ndarray, command: np.ndarray) -> None:
@@ -653,7 +649,7 @@ class ZerithTask:
         """Observations, rewards and episode ends from the sensors (n, nsensordata) after physics."""
         if np.logical_or.reduce(unstable):
             sensordata = np.where(unstable[:, None], 0.0, sensordata)
-        readings = self.sensors.read(sensordata)
+        readings = read_sensors(self.sensors, sensordata)
         noise = observation_noise(self._uniforms, self.arrays, self.draws) if self._noisy else None
         self.state, out = end_step(self.state, readings, unstable, noise, self.constants)
         ended = out.terminated | out.truncated
@@ -662,7 +658,7 @@ class ZerithTask:
 
     def observe(self, ids: np.ndarray, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Policy and critic observations of robots `ids` right after their reset, from their sensors."""
-        readings = self.sensors.read(sensordata)
+        readings = read_sensors(self.sensors, sensordata)
         state = self.state
         noise = observation_noise(self._uniforms[ids], self.arrays, self.draws) if self._noisy else None
         started = TaskState(*(field[ids] for field in state))

@@ -5,11 +5,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
-from zerith_gym.commands import CommandRanges
-from zerith_gym.disturbances import NO_FORCE, ForceCycle, ForceProgram, ForceSchedule
-from zerith_gym.randomization import NOMINAL, TEST_COM, TEST_FRICTION, TEST_LOAD, TRAIN, RandomizationRanges
-from zerith_gym.terrain import PLANE, UNEVEN, TerrainSpec, tile_terrain
-from zerith_gym.tiles import legged_gym_kinds
+from zerith_gym.core.commands import CommandRanges
+from zerith_gym.core.disturbances import NO_FORCE, ForceCycle, ForceProgram, ForceSchedule
+from zerith_gym.core.randomization import (
+    NOMINAL,
+    TEST_COM,
+    TEST_FRICTION,
+    TEST_LOAD,
+    TRAIN,
+    RandomizationRanges,
+)
+from zerith_gym.terrain.ground import PLANE, UNEVEN, TerrainSpec, tile_terrain
+from zerith_gym.terrain.tiles import legged_gym_kinds
 
 TEST_COMMAND = (1.0, 0.0, 0.0)
 """The evaluation command: 1 m/s forward (beyond the training range), no turning."""

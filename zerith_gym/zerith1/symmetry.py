@@ -4,7 +4,7 @@ The robot, its default stance, joint ranges, gains and the task are symmetric ab
 a state reflected left-to-right calls for the reflected action. Reflecting swaps the legs, flips the sign of
 the lateral and turning quantities (roll, yaw, their rates, the sideways and turning commands, the hip yaw,
 hip roll and ankle roll joints, whose axes are the same on both legs) and moves the gait clock by half a
-period (the right foot runs half a period after the left, `zerith_gym.gait`). Each map is a signed
+period (the right foot runs half a period after the left, `zerith_gym.zerith1.gait`). Each map is a signed
 permutation: ``mirrored[..., i] = sign[i] * x[..., index[i]]``, its own inverse. A symmetry loss
 (`HuRiPPO(mirror_coef=...)`) asks the actor to act on a mirrored observation as it acts on the original,
 mirrored. The critic's observation is not mapped: the domain parameters and height samples carry sides of
@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.observations import POLICY_LAYOUT, POLICY_SIZE, layout_slices
+from zerith_gym.core.observations import layout_slices
+from zerith_gym.zerith1 import constants as robot
+from zerith_gym.zerith1.observations import POLICY_LAYOUT, POLICY_SIZE
 
 LATERAL_JOINTS = ("hip_yaw", "hip_roll", "ankle_roll")
 """Leg joints whose angle changes sign under the mirror (rotations about the x or z axis)."""

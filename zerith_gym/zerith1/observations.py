@@ -1,7 +1,8 @@
-"""Observation layouts of the actor ("policy") and the privileged critic ("critic"), and the critic's scales.
+"""Zerith-1's observation layouts of the actor ("policy") and the privileged critic ("critic"), and the
+critic's scales.
 
-Each layout is a sequence of (name, size) blocks; `layout_slices` turns it into index ranges, which the
-documentation tables are generated from, so code and docs agree.
+Each layout is a sequence of (name, size) blocks (`zerith_gym.core.observations.layout_slices` turns it into
+index ranges, which the documentation tables are generated from, so code and docs agree).
 
 The actor's observation is in physical units, for a running normalizer (`VecNormalize`) and the deployed
 actor, which carries that normalizer. The critic's comes out of the env already scaled by known ranges
@@ -15,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from zerith_gym import robot
-from zerith_gym.randomization import DOMAIN_SIZES, DOMAIN_VECTOR_SIZE, WIDEST, domain_bounds
+from zerith_gym.core.observations import HEIGHT_SCALE, MAX_EXTERNAL_FORCE, layout_slices
+from zerith_gym.core.randomization import DOMAIN_SIZES, DOMAIN_VECTOR_SIZE, WIDEST, domain_bounds
+from zerith_gym.zerith1 import constants as robot
 
 HEIGHT_SAMPLE_OFFSETS = np.array([(dx, dy) for dx in (-0.1, 0.0, 0.1) for dy in (-0.1, 0.0, 0.1)])
 """Height-sample points around each foot (m, in the base's yaw frame): a 3 x 3 grid, 0.1 m apart."""
@@ -54,24 +56,10 @@ POLICY_NOISE = {
 }
 """Half width of the uniform sensor noise on each policy block in training (units of the block)."""
 
-
-MAX_EXTERNAL_FORCE = 200.0
-"""The largest external force (N) of the paper's tests (sudden U[150, 200] N): the critic's unit of force."""
 BODY_WEIGHT = robot.TOTAL_MASS * 9.81
 """The nominal body weight (N): the critic's unit of contact force."""
 POLICY_BLOCK_SCALES = {"base_angular_velocity": 0.25, "joint_velocity": 0.05}
 """Factors on the policy's blocks where the critic reads them (rad/s: 4 and 20 to about 1); others 1."""
-HEIGHT_SCALE = 5.0
-"""Factor on heights (m) in the critic: 0.2 m to 1."""
-
-
-def layout_slices(layout: tuple[tuple[str, int], ...]) -> dict[str, slice]:
-    """Index range of each block of `layout`."""
-    slices, start = {}, 0
-    for name, size in layout:
-        slices[name] = slice(start, start + size)
-        start += size
-    return slices
 
 
 def policy_noise_scale() -> np.ndarray:

@@ -17,13 +17,13 @@ Two implementations compute the same (n, K) array of unweighted terms, columns i
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable
 from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym.arrays import namespace
+from zerith_gym.core.arrays import namespace
 
 DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
     # task
@@ -96,7 +96,7 @@ class RewardInputs(NamedTuple):
 
 
 # ------------------------------------------------------------------------------ the terms, one by one
-# Written against the functions numpy and jax.numpy share (`zerith_gym.arrays`): the MJX backend runs
+# Written against the functions numpy and jax.numpy share (`zerith_gym.core.arrays`): the MJX backend runs
 # these very functions under `jax.jit`, where XLA fuses them.
 def _xp(x: RewardInputs) -> ModuleType:
     return namespace(x.command)
@@ -239,51 +239,6 @@ TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {name: globals()[name] 
 def reward_terms_by_name(x: RewardInputs) -> np.ndarray:
     """All reward terms, unweighted, (n, len(REWARD_NAMES)): one function call per term."""
     return _xp(x).stack([TERMS[name](x) for name in REWARD_NAMES], axis=1)
-
-
-class TermValues(Mapping[str, float]):
-    """Term name -> value, read from one row (K,) of a terms array: what `info["reward_terms"]` holds.
-
-    A read-only mapping over the row, so that building one per robot and step costs next to nothing;
-    `dict(values)` makes a plain dict. The row is never written after it is handed out.
-    """
-
-    __slots__ = ("_names", "_row")
-
-    def __init__(self, row: np.ndarray, names: tuple[str, ...] = REWARD_NAMES) -> None:
-        self._row, self._names = row, names
-
-    def __getitem__(self, name: str) -> float:
-        if name not in self._names:
-            raise KeyError(name)
-        return float(self._row[self._names.index(name)])
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._names)
-
-    def __len__(self) -> int:
-        return len(self._names)
-
-    def __repr__(self) -> str:
-        return repr(dict(zip(self._names, self._row.tolist(), strict=True)))
-
-
-def resolve_reward_weights(
-    overrides: Mapping[str, float] | None = None, defaults: Mapping[str, float] = DEFAULT_REWARD_WEIGHTS
-) -> np.ndarray:
-    """The weight vector (K,) in the order of `defaults` (a task's terms and weights; Zerith-1's unless
-    given) with `overrides` applied; ValueError on an unknown term or a non-finite weight."""
-    weights = dict(defaults)
-    for name, value in (overrides or {}).items():
-        if name not in weights:
-            raise ValueError(
-                f"unknown reward term {name!r} in reward_weights; valid terms: {', '.join(defaults)}"
-            )
-        value = float(value)
-        if not np.isfinite(value):
-            raise ValueError(f"reward_weights[{name!r}] must be finite, got {value}")
-        weights[name] = value
-    return np.array([weights[name] for name in defaults])
 
 
 # ----------------------------------------------------------------------------------- the fused path

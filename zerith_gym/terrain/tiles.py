@@ -1,7 +1,7 @@
 """Tile terrains: a grid of square tiles, one column per terrain kind and one row per difficulty level.
 
 Legged-robot trainers lay their terrains out this way so that a curriculum can move each robot to a
-harder or easier tile by changing where it starts (`zerith_gym.terrain_levels`). Every tile is built around
+harder or easier tile by changing where it starts (`zerith_gym.terrain.levels`). Every tile is built around
 a spawn square at its centre (flat but for the rough slopes' bumps) and meets its neighbours at height 0
 along its edges, so a robot that walks off its tile steps onto the next one instead of off a cliff. A kind
 is named for what a robot that starts at the tile's centre meets, whichever way it walks:

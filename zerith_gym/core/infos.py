@@ -20,14 +20,42 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from zerith_gym.rewards import TermValues
-
 if TYPE_CHECKING:
-    from zerith_gym.contract import BatchStep
+    from zerith_gym.core.contract import BatchStep
 
 _COMPUTED = ("fall", "sim_unstable", "lin_vel_error", "ang_vel_error", "external_force", "command",
              "reward_terms", "terrain_level", "TimeLimit.truncated")  # fmt: skip
 """The keys every robot's info has each step (documented in `Zerith1Env`)."""
+
+
+class TermValues(Mapping[str, float]):
+    """Term name -> value, read from one row (K,) of a terms array (columns `names`): what
+    `info["reward_terms"]` holds.
+
+    A read-only mapping over the row, so that building one per robot and step costs next to nothing;
+    `dict(values)` makes a plain dict. The row is never written after it is handed out.
+    """
+
+    __slots__ = ("_names", "_row")
+
+    def __init__(self, row: np.ndarray, names: tuple[str, ...]) -> None:
+        self._row, self._names = row, names
+
+    def __getitem__(self, name: str) -> float:
+        if name not in self._names:
+            raise KeyError(name)
+        return float(self._row[self._names.index(name)])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __repr__(self) -> str:
+        return repr(dict(zip(self._names, self._row.tolist(), strict=True)))
+
+
 _COMPUTED_KEYS = frozenset(_COMPUTED)
 
 

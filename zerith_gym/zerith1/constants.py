@@ -1,20 +1,19 @@
-"""Zerith-1 robot constants: joint order, default pose, actuation, bodies and timing.
+"""Zerith-1 robot constants: joint order, default pose, actuation, bodies, sensors and timing.
 
-Everything about the robot that the task needs lives here, apart from the task logic, so a different
-robot can be plugged in by writing another module like this one (and its MJCF).
+Everything about the robot that the task needs lives here, apart from the task logic (`zerith1/task.py`);
+`ZERITH1` hands it to the shared machinery. Every constant must match the MJCF (`zerith1.xml`).
 """
 
 from __future__ import annotations
 
-import itertools
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from zerith_gym.robot_spec import RobotSpec
+from zerith_gym.core.spec import RobotSpec
 
-ASSET_PATH = Path(__file__).resolve().parent / "assets" / "zerith1.xml"
+ASSET_PATH = Path(__file__).resolve().parent / "zerith1.xml"
 
 LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
 SIDES = ("left", "right")
@@ -55,18 +54,6 @@ CONTROL_DT = 0.02
 DECIMATION = round(CONTROL_DT / PHYSICS_DT)
 
 
-def sensor_slices(model) -> dict[str, slice]:
-    """Map each sensor name of `model` to its slice of `data.sensordata`."""
-    import mujoco
-
-    slices = {}
-    for i in range(model.nsensor):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, i)
-        start = int(model.sensor_adr[i])
-        slices[name] = slice(start, start + int(model.sensor_dim[i]))
-    return slices
-
-
 _FEET = tuple(f"{side}_foot" for side in SIDES)
 SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
     "base_pos": ("base_pos",),
@@ -89,8 +76,8 @@ SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
 class Sensors(NamedTuple):
     """The robot's readings, one field per quantity of `SENSOR_GROUPS`; all in the world frame unless noted.
 
-    As a layout, each field is a slice of `data.sensordata`; as readings of n robots (`layout.read`), each
-    is an (n, width) view of their sensor rows.
+    As a layout (`RobotSpec.sensor_layout`), each field is a slice of `data.sensordata`; as readings of n
+    robots (`zerith_gym.core.spec.read_sensors`), each is an (n, width) view of their sensor rows.
     """
 
     base_pos: np.ndarray  # (3) pelvis position
@@ -106,28 +93,6 @@ class Sensors(NamedTuple):
     foot_linvel: np.ndarray  # (6) left xyz, right xyz
     foot_force: np.ndarray  # (6) ground reaction on each sole: left xyz, right xyz
     leg_collision: np.ndarray  # (1) > 0 when the legs touch
-
-    @staticmethod
-    def layout(model) -> Sensors:
-        """Slices of `data.sensordata` of every quantity; ValueError if a quantity's sensors are split."""
-        return Sensors(**sensor_blocks(model, SENSOR_GROUPS))
-
-    def read(self, sensordata: np.ndarray) -> Sensors:
-        """Views of each quantity in `sensordata` (n, nsensordata), for a layout of slices."""
-        return Sensors(*(sensordata[:, block] for block in self))
-
-
-def sensor_blocks(model, groups: dict[str, tuple[str, ...]]) -> dict[str, slice]:
-    """For each quantity of `groups` (its sensors' names, in order), its slice of `data.sensordata`;
-    ValueError if a quantity's sensors are not contiguous in the model."""
-    slices = sensor_slices(model)
-    blocks = {}
-    for quantity, names in groups.items():
-        parts = [slices[name] for name in names]
-        if any(a.stop != b.start for a, b in itertools.pairwise(parts)):
-            raise ValueError(f"sensors {names} must be contiguous in the model")
-        blocks[quantity] = slice(parts[0].start, parts[-1].stop)
-    return blocks
 
 
 ZERITH1 = RobotSpec(
@@ -148,6 +113,7 @@ ZERITH1 = RobotSpec(
     standing_height=STANDING_HEIGHT,
     physics_dt=PHYSICS_DT,
     control_dt=CONTROL_DT,
-    sensor_layout=Sensors.layout,
+    sensors=Sensors,
+    sensor_groups=SENSOR_GROUPS,
 )
-"""Zerith-1 as the shared machinery reads it (`zerith_gym.robot_spec.RobotSpec`)."""
+"""Zerith-1 as the shared machinery reads it (`zerith_gym.core.spec.RobotSpec`)."""

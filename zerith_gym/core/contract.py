@@ -13,10 +13,9 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from zerith_gym.rewards import REWARD_NAMES
-from zerith_gym.scenarios import Scenario
-from zerith_gym.task import StepOutput
-from zerith_gym.terrain_levels import LevelRule
+from zerith_gym.core.scenarios import Scenario
+from zerith_gym.core.task import StepOutput
+from zerith_gym.terrain.levels import LevelRule
 
 
 class BatchStep(NamedTuple):
@@ -29,7 +28,7 @@ class BatchStep(NamedTuple):
     critic_obs: np.ndarray  # (n, CRITIC_SIZE)
     next_command: np.ndarray  # (n, 3) command of the next step (a new episode's where ended)
     terrain_level: np.ndarray  # (n,) int, the terrain level (tile row) each robot walked on in the step
-    reward_names: tuple[str, ...] = REWARD_NAMES  # the columns of `out.terms`
+    reward_names: tuple[str, ...]  # the columns of `out.terms` (the task's reward terms)
 
 
 class Robots(Protocol):

@@ -10,11 +10,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from zerith_gym.arrays import namespace
-from zerith_gym.randomization import NUM_LINKS, DomainParams
-from zerith_gym.robot import ZERITH1
-from zerith_gym.robot_spec import RobotSpec
-from zerith_gym.terrain import Terrain
+from zerith_gym.core.arrays import namespace
+from zerith_gym.core.randomization import NUM_JOINTS, NUM_LINKS, DomainParams
+from zerith_gym.core.spec import RobotSpec
+from zerith_gym.terrain.ground import Terrain
 
 BAD_STATE_WARNINGS = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
 if BAD_STATE_WARNINGS.stop - BAD_STATE_WARNINGS.start != 3:
@@ -23,7 +22,7 @@ GROUND_CLEARANCE = 0.002
 """Gap (m) left between the lowest sole sphere and the ground when the robot is placed at reset."""
 
 
-def build_model(terrain: Terrain, robot: RobotSpec = ZERITH1) -> mujoco.MjModel:
+def build_model(terrain: Terrain, robot: RobotSpec) -> mujoco.MjModel:
     """Compile the robot's MJCF with the terrain's ground, at the robot's physics time step."""
     spec = mujoco.MjSpec.from_file(str(robot.asset_path))
     terrain.add_to(spec)
@@ -54,11 +53,13 @@ class NominalModel:
     scale_column: np.ndarray  # per body: 0 (unscaled), 1 (root), 2 + k (link k) of the mass factors
 
     @staticmethod
-    def capture(model: mujoco.MjModel, terrain: Terrain, robot: RobotSpec = ZERITH1) -> NominalModel:
+    def capture(model: mujoco.MjModel, terrain: Terrain, robot: RobotSpec) -> NominalModel:
         root = model.body(robot.root_body).id
         links = np.array([b for b in range(1, model.nbody) if b != root])
         if len(links) != NUM_LINKS:
             raise RuntimeError(f"expected {NUM_LINKS} non-root robot bodies, found {len(links)}")
+        if robot.num_joints != NUM_JOINTS:
+            raise RuntimeError(f"expected {NUM_JOINTS} actuated joints, found {robot.num_joints}")
         soles = np.array([model.geom(name).id for name in robot.contact_geoms])
         ground = np.array([model.geom(name).id for name in terrain.ground_geoms])
         scale_column = np.zeros(model.nbody, dtype=int)
