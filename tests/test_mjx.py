@@ -107,12 +107,21 @@ def test_task_functions_give_the_same_numbers_on_numpy_and_jax(scenario):
 
 @pytest.fixture(scope="module")
 def nominal_pair():
-    kwargs = dict(scenario="nominal", command=COMMAND, episode_steps=200)
-    cpu = zerith_gym.make_vec_env(2, seed=0, backend="cpu", workers=0, **kwargs)
-    mjx = zerith_gym.make_vec_env(2, seed=0, backend="mjx", **kwargs)
+    """Four robots in `nominal` on each backend, shared by the tests that compare them: an MJX env compiles
+    its reset and step once (minutes on a CPU), and `_restart` gives every test the same start."""
+    kwargs = dict(scenario="nominal", command=COMMAND, episode_steps=1000)
+    cpu = zerith_gym.make_vec_env(4, seed=0, backend="cpu", workers=0, **kwargs)
+    mjx = zerith_gym.make_vec_env(4, seed=0, backend="mjx", **kwargs)
     yield cpu, mjx
     cpu.close()
     mjx.close()
+
+
+def _restart(*envs):
+    """Seed 0 and reset each env (`nominal` starts every robot alike on both backends)."""
+    for env in envs:
+        env.seed(0)
+    return [env.reset() for env in envs]
 
 
 FORCE_TOLERANCE = dict(atol=0.25, rtol=2e-3)
@@ -148,9 +157,9 @@ def test_mjx_follows_the_cpu_backend_from_the_same_start(nominal_pair):
     5e-3 apart from the contact forces (0.25 N of about 200 N).
     """
     cpu, mjx = nominal_pair
-    obs_cpu, obs_mjx = cpu.reset(), mjx.reset()
+    obs_cpu, obs_mjx = _restart(cpu, mjx)
     np.testing.assert_allclose(obs_mjx["policy"], obs_cpu["policy"], atol=1e-5)
-    actions = np.zeros((2, 12))
+    actions = np.zeros((cpu.num_envs, 12))
     for _ in range(40):
         obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
         obs_mjx, reward_mjx, done_mjx, info_mjx = mjx.step(actions)
@@ -176,7 +185,7 @@ def _walking_policy():
 
 
 @pytest.mark.parametrize("policy", ["random", "walking"])
-def test_mjx_follows_the_cpu_backend_with_moving_legs(policy):
+def test_mjx_follows_the_cpu_backend_with_moving_legs(nominal_pair, policy):
     """Touchdowns, lift-offs and falls alike: the soles are spheres and the integrator is Euler.
 
     Four robots in `nominal` from the same start, driven by random actions of std 0.1 or by the shipped
@@ -186,13 +195,11 @@ def test_mjx_follows_the_cpu_backend_with_moving_legs(policy):
     actuator reaches its torque limit: C MuJoCo drops the clamped actuator's damping from the implicit
     step, MJX keeps it.)
     """
-    n = 4
-    kwargs = dict(scenario="nominal", command=COMMAND, episode_steps=1000)
-    cpu = zerith_gym.make_vec_env(n, seed=0, backend="cpu", workers=0, **kwargs)
-    mjx = zerith_gym.make_vec_env(n, seed=0, backend="mjx", **kwargs)
+    cpu, mjx = nominal_pair
+    n = cpu.num_envs
     rng = np.random.default_rng(0)
     act = _walking_policy() if policy == "walking" else lambda obs: rng.normal(scale=0.1, size=(n, 12))
-    obs_cpu, _ = cpu.reset(), mjx.reset()
+    obs_cpu, _ = _restart(cpu, mjx)
     for step in range(100):
         actions = act(obs_cpu)
         obs_cpu, reward_cpu, done_cpu, _ = cpu.step(actions)
@@ -204,8 +211,6 @@ def test_mjx_follows_the_cpu_backend_with_moving_legs(policy):
         _assert_backends_agree(obs_cpu, obs_mjx, reward_cpu, reward_mjx)
     else:
         assert policy == "walking", "random actions of std 0.1 were expected to topple a robot"
-    cpu.close()
-    mjx.close()
 
 
 QUADRUPED_TOLERANCE = {
@@ -274,22 +279,37 @@ def test_mjx_episodes_end_and_restart_inside_the_step():
     assert any(truncated and length == 12 for _, truncated, length in ended)
 
 
-def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
-    """The robust scenario's forces take turns between centroid, hands and feet on MJX as on the CPU."""
+def test_mjx_forces_act_on_the_bodies_of_the_current_target_only(nominal_pair):
+    """The robust scenario's forces take turns between centroid, hands and feet on MJX as on the CPU (the
+    shared env follows it by `set_scenario`, its compiled step unchanged)."""
     from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
     from zerith_gym.core.scenarios import scaled_scenario
 
+    env = nominal_pair[1]
+    nominal = env.robots.scenario
     gentle = scaled_scenario(SCENARIOS["robust"], 0.2)
-    env = zerith_gym.make_vec_env(2, seed=0, backend="mjx", scenario=gentle, command=COMMAND)
+    env.robots.set_scenario(gentle)
     table = gentle.force.table(2000)
     model = env.robots.physics.model
     bodies = {name: [model.body(b).id for b in names] for name, names in robot.ZERITH1.force_bodies.items()}
-    env.reset()
+    _restart(env)
+    try:
+        seen = _targets_pushed(env, table, bodies)
+    finally:
+        env.robots.set_scenario(nominal)
+    assert seen == set(FORCE_TARGET_NAMES)
+
+
+def _targets_pushed(env, table, bodies) -> set:
+    """Step `env` with zero actions; check that each step's force acts on its target's bodies only, and
+    return the targets that were pushed."""
+    from zerith_gym.core.disturbances import FORCE_TARGET_NAMES
+
     seen = set()
     for _ in range(520):  # every target's phases come within 400 steps of any start phase
         task = env.robots.state.task
         step_count = np.asarray(task.step_count + task.force_offset)  # the table step about to be simulated
-        _, _, dones, infos = env.step(np.zeros((2, 12)))
+        _, _, dones, infos = env.step(np.zeros((env.num_envs, 12)))
         applied = np.asarray(env.robots.state.data.xfrc_applied)[:, :, :3]
         for i, info in enumerate(infos):
             if dones[i]:
@@ -302,7 +322,7 @@ def test_mjx_forces_act_on_the_bodies_of_the_current_target_only():
                 )
             if np.any(info["external_force"]):
                 seen.add(target)
-    assert seen == set(FORCE_TARGET_NAMES)
+    return seen
 
 
 def test_mjx_randomizes_like_the_cpu_backend():
@@ -365,6 +385,7 @@ def test_sb3_ppo_and_huri_train_on_mjx_unchanged(train_env, algo, tmp_path):
     )
 
 
+@pytest.mark.slow  # its own MJX compile; RL Zoo's env_kwargs path is the CPU's (tests/test_zoo.py)
 def test_rl_zoo_trains_on_mjx_through_env_kwargs(tmp_path):
     command = [
         sys.executable, "-m", "rl_zoo3.train", "--algo", "huri", "--env", "Zerith1-v0",
@@ -379,14 +400,12 @@ def test_rl_zoo_trains_on_mjx_through_env_kwargs(tmp_path):
     assert "backend: mjx" in (run / "Zerith1-v0" / "args.yml").read_text()
 
 
-def test_mjx_keeps_the_robots_contract():
+def test_mjx_keeps_the_robots_contract(nominal_pair):
     from zerith_gym.core.contract import Robots
 
-    env = zerith_gym.make_vec_env(2, seed=0, backend="mjx")
-    env.reset()
+    env = nominal_pair[1]
     members = [name for name in vars(Robots) if not name.startswith("_")] + ["num_robots", "scenario"]
     assert all(hasattr(env.robots, name) for name in members)
-    env.close()
 
 
 def test_bad_backend_options_get_clear_errors():
