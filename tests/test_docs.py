@@ -29,3 +29,18 @@ def test_the_link_pattern_finds_links_and_images(tmp_path: Path) -> None:
     page = tmp_path / "page.md"
     page.write_text("[a](x.md#part) ![b](media/y.png) [c](https://e.org) [d](#here)\n```\n[e](z.md)\n```\n")
     assert relative_targets(page) == ["x.md#part", "media/y.png"]
+
+
+def test_the_standard_task_tables_in_docs_are_the_generated_reports() -> None:
+    """docs/huri.md's five-seed tables hold every row of `results/mujoco/report.md`'s per-task and
+    across-task tables as written by `python -m sb3_huri.experiments report`, so the docs cannot keep old
+    numbers."""
+    report = (REPO / "results" / "mujoco" / "report.md").read_text()
+    docs = (REPO / "docs" / "huri.md").read_text()
+    rows = []
+    for title in ("HalfCheetah-v5", "Walker2d-v5", "Across tasks"):
+        part = report.split(f"\n## {title}\n", 1)[1].split("\n## ", 1)[0]
+        rows += [line for line in part.splitlines() if line.startswith("| `")]
+    assert len(rows) >= 8, "the report has fewer method rows than its three tables should"
+    stale = [row for row in rows if row not in docs]
+    assert not stale, f"docs/huri.md lacks these rows of results/mujoco/report.md: {stale}"
