@@ -1,8 +1,9 @@
 """How good a baseline each agent's value is (``study.analyses.value_baseline``).
 
 Its lambda = 1 returns are checked against the GAE written in the tests (``huri_helpers.gae`` at lambda = 1,
-plus the value), its count of steps to a fall against a hand-made episode, and the measurement end to end on
-run folders of the robust recipe shrunk to seconds (HuRi and PPO), in the campaign's analyses too.
+plus the value), its count of steps to a fall against a hand-made episode, and the measurement end to end
+on run folders of the robust recipe shrunk to seconds (HuRi, huri-neutral and PPO), in the campaign's
+analyses too.
 """
 
 from __future__ import annotations
@@ -53,14 +54,14 @@ def test_steps_to_a_fall_count_within_an_episode_ending_in_a_fall_only() -> None
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """HuRi and PPO run folders of the tiny robust preset, trained 64 steps in 420-step episodes
+    """HuRi, huri-neutral and PPO run folders of the tiny robust preset, trained 64 steps in 420-step episodes
     (the robust scenario starts episodes up to 400 steps into its force cycle)."""
     folder = tmp_path_factory.mktemp("value_baseline")
     preset = read_preset("Zerith1-v0", tiny_robust_preset(folder))
     preset["env_kwargs"]["episode_steps"] = 420
     options = TrainingOptions(checkpoint_freq=10_000, workers=0, verbose=0)
     found = {}
-    for method in ("huri", "huri-baseline"):
+    for method in ("huri", "huri-neutral", "huri-baseline"):
         found[method] = folder / method / "Zerith1-v0_1"
         assert train_run(RunRequest(found[method], preset, method, 0, until=STEPS), options) == STEPS
     return found
@@ -81,6 +82,16 @@ def test_a_quantile_critic_is_measured_on_both_values_and_its_risk_before_falls(
     if record["falls"]:
         assert record["before_fall_states"] >= record["falls"] and -1.0 <= record["risk_before_fall"] <= 1.0
     assert -2.0 <= record["risk_elsewhere"] <= 2.0  # beta_IQR in [-1, 1] plus tanh(RND) in [0, 1)
+
+
+def test_a_risk_neutral_critic_s_value_is_its_atom_mean_at_risk_level_zero(runs) -> None:
+    record = measured_record(measure_value_baseline(runs["huri-neutral"], warmup=1, rollouts=2))
+    assert record is not None and record["method"] == "huri-neutral"
+    explained = record["explained_variance"]
+    assert set(explained) == {"value", "atom_mean"}
+    assert explained["value"] == pytest.approx(explained["atom_mean"], abs=1e-6)
+    assert record["risk_elsewhere"] == 0.0
+    assert record["risk_before_fall"] in (None, 0.0)
 
 
 def test_ppo_is_measured_on_its_value_alone_and_has_no_risk_level(runs, monkeypatch, capsys) -> None:
