@@ -21,9 +21,9 @@
   neutral and of a constant risk level (measured likewise, ``study.scripts.advantages`` by hand);
 - how much of its training rollouts' returns each agent's value explains (HuRi's ``V_beta`` and its
   atoms' mean, PPO's ``V``) and its risk level before a fall (``study.scripts.value_baseline`` by hand);
-- ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its percentile-band runs
-  against HuRi and PPO at equal steps while they train, and its Table 8 analog with its pairs (and its
-  methods side by side, as in the Table-1 section);
+- ``quadruped.png``: the quadruped's return and terrain level (Fig. 10 analog), its runs of other readings
+  (the percentile band) against HuRi and PPO at equal steps while they train, and its Table 8 analog with
+  its pairs (and its methods side by side, as in the Table-1 section);
 - ``rollout_shape.png``: the robust recipe with 256 robots x 64 steps against 32 x 512, seed for seed,
   and their final evaluations on the same robots where both were evaluated at comparable steps;
 - the Table 9 analog: Zerith-1's survival on the multi-terrain test and down the platforms, beside the
@@ -34,7 +34,8 @@
   ``study.scripts.force_magnitude``);
 - ``band.png``: the IQR band in training, the shares of each rollout's states below, within and above it
   and the mean beta, per run with a quantile critic (the robustness and quadruped sections hold the
-  percentile-band runs to literal HuRi and PPO at equal steps).
+  runs of every other reading, the percentile band, the risk-neutral critic and the ablations, to HuRi and
+  PPO at equal steps while they train: ``results.early_signal``).
 
 The sentences that say what the numbers show (and what they cannot show yet) are generated from the same
 numbers: nothing on the page is typed in by hand but the fixed explanations.

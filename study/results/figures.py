@@ -17,7 +17,7 @@ from sb3_huri.runner.evaluation import PLANE_CASE, RISK_CASES, read_trace
 from sb3_huri.runner.record import trace_path
 from sb3_huri.runner.robustness import read_rows
 from study.campaign.queue import PROTOCOLS, CampaignEntry
-from study.results.band import early_signal_lines
+from study.results.early_signal import early_signal_lines
 from study.results.evaluations import (
     FIGURE_DPI,
     METHOD_COLORS,

@@ -13,7 +13,7 @@ from sb3_huri.experiments.markdown import table
 from sb3_huri.runner.curve import read_curve
 from study.campaign.final_evaluation import QUADRUPED_CASES
 from study.campaign.queue import CampaignEntry
-from study.results.band import early_signal_lines
+from study.results.early_signal import early_signal_lines
 from study.results.evaluations import (
     Evaluated,
     method_label,
@@ -70,8 +70,8 @@ def quadruped_findings(evaluations: Sequence[Evaluated]) -> list[str]:
 def quadruped_section(
     entries: Sequence[CampaignEntry], evaluations: Sequence[Evaluated], figures: Path, out: Path
 ) -> list[str]:
-    """The quadruped section: the quadruped's runs (Fig. 10 analog), the percentile-band runs against HuRi
-    and PPO at equal steps while they train, and the final evaluations (Table 8 analog)."""
+    """The quadruped section: the quadruped's runs (Fig. 10 analog), the runs of other readings against
+    HuRi and PPO at equal steps while they train, and the final evaluations (Table 8 analog)."""
     entries = [entry for entry in entries if entry.protocol == "quadruped"]
     if not entries:
         return []

@@ -11,7 +11,8 @@ import yaml
 
 from sb3_huri.runner.curve import CURVE_COLUMNS, append_row
 from study.campaign.queue import load_queue
-from study.results.band import band_section, early_signal_lines
+from study.results.band import band_section
+from study.results.early_signal import early_signal_lines
 
 STEP = 100_000
 
@@ -119,3 +120,30 @@ def test_the_quadruped_early_signal_shows_the_terrain_level_every_5m_steps(tmp_p
         "0.50 / 0.50 / 0.50",
         " / ".join(f"{value:.2f}" for value in expected),
     ]
+
+
+def test_a_risk_neutral_run_is_held_against_huri_and_ppo_at_equal_steps_without_band_shares(tmp_path):
+    """huri-neutral reads no IQR band: its early signal has the training figures and the Table-1 means of
+    the three runs at its own robustness rows, and no band column."""
+    _run(tmp_path / "neutral/Zerith1-v0_1", 2_000_000, 50.0, None, {1_000_000: 0.375, 2_000_000: 0.5})
+    _run(tmp_path / "huri/Zerith1-v0_1", 3_000_000, 200.0, None, {2_000_000: 0.25})
+    _run(tmp_path / "ppo/Zerith1-v0_1", 3_000_000, 300.0, None, {999_000: 0.125, 2_000_500: 0.625})
+    _queue(tmp_path)
+    queue = yaml.safe_load((tmp_path / "campaign.yml").read_text())
+    queue["entries"][0].update(name="neutral", method="huri-neutral", run="neutral/Zerith1-v0_1")
+    (tmp_path / "campaign.yml").write_text(yaml.safe_dump(queue))
+    lines = early_signal_lines(load_queue(tmp_path / "campaign.yml"), tmp_path / "results.md")
+
+    assert lines[0].startswith("**neutral** (huri-neutral) against `huri/Zerith1-v0_1` (HuRi) and ")
+    assert lines[0].endswith("(50 robots per case).")
+    header = next(line for line in lines if line.startswith("| steps |"))
+    columns = "| steps | return: huri-neutral / HuRi / PPO | length | fall rate | Table-1 mean (rows) |"
+    assert header == columns
+    rows = {line.split(" | ")[0]: line.rstrip(" |").split(" | ") for line in lines if line[2:3].isdigit()}
+    assert set(rows) == {"| 1M", "| 2M"}
+    # (1M, 2M] holds rollouts 10-19 of each run; each run's return rises by 1 per rollout from its start.
+    expected = [np.mean([start + i for i in range(10, 20)]) for start in (50.0, 200.0, 300.0)]
+    assert rows["| 2M"][1] == " / ".join(f"{value:.0f}" for value in expected)
+    assert rows["| 1M"][4] == "0.375 / 0.250 (2.0M) / 0.125"  # HuRi's nearest row, with its own step
+    assert rows["| 2M"][4] == "0.500 / 0.250 / 0.625"
+    assert len(rows["| 2M"]) == 5  # no band shares
