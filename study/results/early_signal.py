@@ -20,9 +20,8 @@ from study.campaign.queue import CampaignEntry
 from study.results.band import WINDOW_STEPS, number_cell, shares_cell, window_means
 from study.results.evaluations import BASELINE, method_label, runs_of
 from study.results.markdown import link, millions
+from study.results.methods import REFERENCE
 
-LITERAL = "huri"
-"""The paper's HuRi, which every other reading is held against beside PPO."""
 ROW_PERIOD = 5_000_000
 """The robustness rows' period: a peer's row counts at a step within half of it."""
 
@@ -37,14 +36,14 @@ def early_signal_lines(entries: Sequence[CampaignEntry], out: Path) -> list[str]
         first = run_entries[0]
         own = read_curve(run)
         marks = _marks(run, own)
-        if first.method in (LITERAL, BASELINE) or not marks:
+        if first.method in (REFERENCE, BASELINE) or not marks:
             continue
         peers = {
             method: next(
                 (e.run for e in entries if e.method == method and _same_recipe(e, first) and e.run != run),
                 None,
             )
-            for method in (LITERAL, BASELINE)
+            for method in (REFERENCE, BASELINE)
         }
         on_tiles = first.protocol == "quadruped"
         with_band = METHODS[first.method].use_iqr
